@@ -1,0 +1,116 @@
+"""The js2 log writer and reader against the spec: round trip, truncation recovery, refusals."""
+import json
+
+import numpy as np
+import pytest
+from mcap.writer import Writer
+
+from js2spec.errors import LogError
+from js2spec.log import LogWriter, read_log
+from js2spec.robot import load_robot
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot("js2")
+
+
+def _write(path, robot, n_cycles=2000, nan_at=None, gap_at=None):
+    rng = np.random.default_rng(1)
+    pos = rng.normal(size=(n_cycles, 6))
+    with LogWriter(path, robot="js2", cycle_hz=500, source="hil_sim:test", urdf_text=robot.urdf_text,
+                   drives_yaml=robot.drives_yaml) as w:
+        w.event(0.0, "trial_start", "static")
+        w.event(0.0, "segment_start", "static", joint=1, direction=1, pose=[0.0] * 6)
+        for k in range(n_cycles):
+            if gap_at is not None and k == gap_at:
+                continue
+            p = pos[k].copy()
+            if nan_at is not None and k == nan_at:
+                p[2] = np.nan
+            w.feedback(k, k / 500, p, torque=p * 0.1, motor_current=p, status=[0x27] * 6)
+            w.command(k, k / 500, 10, p * 0.01)
+        w.event((n_cycles - 1) / 500, "breakaway", "static", joint=1, direction=1, value=0.031)
+        w.event((n_cycles - 1) / 500, "segment_end", "static", joint=1)
+        w.event((n_cycles - 1) / 500, "trial_end", "static")
+    return pos
+
+
+def test_round_trip(tmp_path, robot):
+    path = tmp_path / "a.mcap"
+    pos = _write(path, robot)
+    log = read_log(path)
+    assert not log.truncated and log.robot == "js2" and log.cycle_hz == 500
+    np.testing.assert_array_equal(log.feedback.motor_position, pos)
+    np.testing.assert_array_equal(log.feedback.cycle, np.arange(2000))
+    assert log.command.target_torque.shape == (2000, 6) and np.all(log.command.mode == 10)
+    assert [e["kind"] for e in log.events].count("breakaway") == 1
+    seg, t_end = log.segments("static")[0]
+    assert seg["joint"] == 1 and seg["pose"] == [0.0] * 6 and t_end == pytest.approx(1999 / 500)
+    assert log.drives.K.shape == (6, 6) and "<robot" in log.urdf_text
+    assert len(log.sha256) == 64
+
+
+def test_truncated_log_is_recovered_and_says_so(tmp_path, robot):
+    path = tmp_path / "a.mcap"
+    pos = _write(path, robot, n_cycles=6000)
+    data = path.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: int(len(data) * 0.6)])
+    log = read_log(cut)
+    assert log.truncated and "truncated" in log.recovered_note
+    n = len(log.feedback)
+    assert 1000 < n < 6000
+    np.testing.assert_array_equal(log.feedback.motor_position, pos[:n])
+
+
+def test_gaps_and_nans_are_reported_not_hidden(tmp_path, robot):
+    path = tmp_path / "a.mcap"
+    _write(path, robot, nan_at=100, gap_at=50)
+    log = read_log(path)
+    assert log.lost_cycles == 1
+    assert not log.feedback.valid[99, 2] and log.feedback.valid[99, 1]  # cycle 100 is row 99 after the gap
+    assert any("NaN" in w for w in log.warnings)
+
+
+def test_refuses_non_mcap(tmp_path):
+    p = tmp_path / "x.mcap"
+    p.write_text("hello")
+    with pytest.raises(LogError, match=r"x.mcap: not an MCAP file"):
+        read_log(p)
+
+
+def _raw_mcap(path, meta, attachments=(), feedback=None):
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        if meta is not None:
+            w.add_metadata("js2", meta)
+        for name, data in attachments:
+            w.add_attachment(0, 0, name, "text/plain", data)
+        if feedback is not None:
+            sid = w.register_schema("x", "jsonschema", b"{}")
+            cid = w.register_channel("/js2/feedback", "json", sid)
+            for i, msg in enumerate(feedback):
+                w.add_message(cid, log_time=i, publish_time=i, data=json.dumps(msg).encode())
+        w.finish()
+
+
+def test_refuses_wrong_version_missing_parts_and_bad_arrays(tmp_path, robot):
+    meta = {"format": "js2-log", "version": "1", "robot": "js2", "cycle_hz": "500", "source": "x",
+            "created": "2026-11-22T00:00:00Z"}
+    att = [("robot.urdf", robot.urdf_text.encode()), ("drives.yaml", robot.drives_yaml.encode())]
+    good = {"cycle": 0, "t": 0.0, "motor_position": [0.0] * 6, "torque": [0.0] * 6, "motor_current": [0.0] * 6}
+    cases = [
+        (None, att, [good], "no 'js2' metadata"),
+        ({**meta, "version": "2"}, att, [good], "version '2' is not supported"),
+        (meta, att[:1], [good], "attachment 'drives.yaml' is missing"),
+        (meta, att, None, "channel /js2/feedback is missing"),
+        (meta, att, [{**good, "torque": [0.0] * 5}], "drives.yaml lists 6 joints"),
+    ]
+    for i, (m, a, fb, msg) in enumerate(cases):
+        p = tmp_path / f"bad{i}.mcap"
+        _raw_mcap(p, m, a, fb)
+        with pytest.raises(LogError) as err:
+            read_log(p)
+        assert msg in str(err.value) and str(p) in str(err.value)
