@@ -1,0 +1,100 @@
+"""The model file, ``model.yaml`` — written by identification, extended by diagnosis, loaded by the simulator
+and by users. Whatever reads it reads it through :func:`load_model`.
+
+Required keys (motor side, SI units, per-motor lists in drive order):
+``joints``, ``friction: {static, coulomb, viscous}`` (N*m, N*m, N*m*s/rad), ``motor_inertia`` (kg*m^2),
+``base_parameters: {names, values, std}``, ``validation: {rms, nrms}``.
+The identified URDF (``robot_identified.urdf``) sits beside it (or the key ``urdf`` names it).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .errors import ConfigError
+
+
+@dataclass(frozen=True, eq=False)
+class IdentifiedModel:
+    path: Path
+    joints: list[str]
+    friction_static: np.ndarray      # f_s, N*m motor side
+    friction_coulomb: np.ndarray     # f_c, N*m motor side
+    friction_viscous: np.ndarray     # B, N*m*s/rad motor side
+    motor_inertia: np.ndarray        # J_a, kg*m^2
+    base_names: list[str]
+    base_values: np.ndarray
+    base_std: np.ndarray
+    urdf_path: Path | None
+    raw: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return len(self.joints)
+
+    @property
+    def urdf_text(self) -> str:
+        if self.urdf_path is None or not self.urdf_path.is_file():
+            raise ConfigError(self.path, "urdf", "the identified URDF beside model.yaml is missing")
+        return self.urdf_path.read_text()
+
+    @property
+    def unmodelled(self) -> list[dict]:
+        """Effects added by diagnosis (``unmodelled:`` list), empty for a plain identified model."""
+        return list(self.raw.get("unmodelled") or [])
+
+
+def _vec(d: dict, key: str, n: int, path, name: str) -> np.ndarray:
+    if key not in d:
+        raise ConfigError(path, name, "missing")
+    try:
+        arr = np.asarray(d[key], dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(path, name, "must be a list of numbers") from None
+    if arr.shape != (n,):
+        raise ConfigError(path, name, f"must have one entry per joint ({n}), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ConfigError(path, name, "contains NaN or infinite values")
+    return arr
+
+
+def load_model(path: str | Path) -> IdentifiedModel:
+    """Load ``model.yaml`` (or the folder holding it)."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / "model.yaml"
+    if not path.is_file():
+        raise ConfigError(path, None, "model file not found (js2-identify writes OUTDIR/model.yaml)")
+    try:
+        d = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(path, None, f"is not valid YAML ({str(exc).splitlines()[0]})") from None
+    if not isinstance(d, dict):
+        raise ConfigError(path, None, "must be a YAML mapping")
+    joints = d.get("joints")
+    if not isinstance(joints, list) or not joints:
+        raise ConfigError(path, "joints", "missing or not a list of joint names")
+    n = len(joints)
+    fr = d.get("friction")
+    if not isinstance(fr, dict):
+        raise ConfigError(path, "friction", "missing (mapping with static, coulomb, viscous)")
+    fs = _vec(fr, "static", n, path, "friction.static")
+    fc = _vec(fr, "coulomb", n, path, "friction.coulomb")
+    fv = _vec(fr, "viscous", n, path, "friction.viscous")
+    ja = _vec(d, "motor_inertia", n, path, "motor_inertia")
+    bp = d.get("base_parameters")
+    if not isinstance(bp, dict) or not {"names", "values"} <= bp.keys():
+        raise ConfigError(path, "base_parameters", "missing (mapping with names, values, std)")
+    names = list(bp["names"])
+    values = np.asarray(bp["values"], dtype=float)
+    std = np.asarray(bp.get("std", [np.nan] * len(names)), dtype=float)
+    if len(names) != len(values) or len(std) != len(values):
+        raise ConfigError(path, "base_parameters", "names, values and std must have the same length")
+    urdf = d.get("urdf", "robot_identified.urdf")
+    urdf_path = (path.parent / urdf) if urdf else None
+    return IdentifiedModel(path=path, joints=list(joints), friction_static=fs, friction_coulomb=fc,
+                           friction_viscous=fv, motor_inertia=ja, base_names=names, base_values=values,
+                           base_std=std, urdf_path=urdf_path, raw=d)
