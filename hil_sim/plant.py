@@ -1,0 +1,369 @@
+"""The simulated arm: eq. 1 on the motor side, stiction, effects, sensors; stepped with motor torques.
+
+```python
+plant = Plant(load_robot("js2"))               # truth: configs/js2/sim_truth.yaml
+plant.reset(q_joint=None)                      # at rest
+plant.step(tau_motor, 0.002)                   # motor-shaft torque held for 2 ms
+r = plant.read_sensors()                       # encoder counts, motor position, current, kt*current
+```
+
+Integration (fixed step ``h = 1/(cycle_hz * substeps)``, ``step(duration)`` uses ``ceil(duration/h)`` equal steps):
+Heun's method, explicit trapezoid, 2nd order, with the last acceleration reused (FSAL)::
+
+    v_half = v + h/2 a(q, v)         q' = q + h v_half
+    a'     = a(q', v + h a)          v' = v_half + h/2 a'
+
+One dynamics evaluation per step (plus one when the torque or the stick/slip mode changes). Semi-implicit Euler is
+1st order (energy error ~1e-3 over 10 s at 0.5 ms on the Js-2); Heun's local error is O(h^3) and keeps the
+energy of the frictionless arm within ~1e-5 relative over 10 s at h = 1 ms, at half the cost of RK4's 4 evaluations.
+
+Friction with real stiction (time-stepping with a stuck set): at the start of each step every axis with dry
+friction that is at rest is a stuck candidate; the dynamics are solved with the candidates' accelerations held at
+zero, which gives the friction ``lambda`` each needs; axes whose ``|lambda|`` exceeds ``f_s`` (eq. 2-3) are released
+(moving in the direction of ``lambda``, with Coulomb friction) and the rest re-solved until consistent. Sliding
+axes carry the friction sign of their velocity for the whole step; an axis whose velocity would cross zero in a
+step stops there (velocity set to 0) and is a candidate at the next step.
+
+Reported joint angles (``q_joint``) are the link angles; with elastic joints they differ from the gear output
+``K theta_m + offset`` by the deflection. The encoders see the motors only.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from js2spec.errors import ConfigError
+
+from .dynamics import ArmDynamics
+from .effects import Effect, parse_effects
+from .friction import Friction
+from .sensors import SensorReading, Sensors
+from .truth import SimTruth, load_truth
+
+__all__ = ["Plant", "SensorReading"]
+
+#: largest (natural frequency x step) allowed for elastic joints (Heun's stability/accuracy on stiff springs)
+MAX_OMEGA_H = 0.2
+
+
+class Plant:
+    """The Js-2 (or any configured arm) as physics: state, ``step``, ``read_sensors``, ``inverse_dynamics``."""
+
+    def __init__(self, robot, truth: SimTruth | str | Path | None = None, seed: int | None = None,
+                 effects: list | None = None):
+        self.robot = robot
+        drives = robot.drives
+        n = self.n = drives.n
+        if truth is None:
+            truth = load_truth(robot)
+        elif not isinstance(truth, SimTruth):
+            truth = load_truth(truth, n)
+        if effects is not None:
+            effects = parse_effects(effects, n, source="Plant(effects=...)", joints=list(drives.joints))
+            truth = truth.replace(effects=tuple(effects))
+        if truth.n != n:
+            raise ConfigError(truth.source, "motor_inertia", f"has {truth.n} drives, drives.yaml {n}")
+        self.truth = truth
+        effects = list(truth.effects)
+        self.effects = effects
+
+        # --- elastic joints (joint_elasticity and/or backlash): one deflection coordinate each
+        elastic: dict[int, dict] = {}
+        for e in effects:
+            if e.kind in ("joint_elasticity", "backlash"):
+                for j in e.joints:
+                    s = elastic.setdefault(j, {"k": None, "d": None, "width": 0.0})
+                    if e.kind == "backlash":
+                        s["width"] = e["width"]
+                        if e["stiffness"] is not None:
+                            s["k"] = e["stiffness"]
+                        if e["damping"] is not None:
+                            s["d"] = e["damping"]
+                    else:
+                        s["k"] = e["stiffness"] if s["k"] is None else s["k"]
+                        s["d"] = e["damping"] if s["d"] is None else s["d"]
+        self.elastic_joints = sorted(elastic)
+        self.spring_k = np.array([elastic[j]["k"] for j in self.elastic_joints], dtype=float)
+        self.spring_d = np.array([elastic[j]["d"] or 0.0 for j in self.elastic_joints], dtype=float)
+        self.spring_half = np.array([elastic[j]["width"] / 2 for j in self.elastic_joints], dtype=float)
+
+        self.dyn = ArmDynamics(robot.urdf_text, drives, truth.motor_inertia, self.elastic_joints,
+                               [e for e in effects if e.kind == "payload_change"], source=robot.urdf_path)
+        self.friction = Friction(truth.viscous, truth.coulomb, truth.static, effects)
+
+        cog = [e for e in effects if e.kind == "cogging"]
+        self.cog_axes = np.array([j for e in cog for j in e.joints], dtype=int)
+        self.cog_amp = np.array([e["amplitude"] for e in cog for _ in e.joints], dtype=float)
+        self.cog_periods = np.array([e["periods_per_rev"] for e in cog for _ in e.joints], dtype=float)
+        self.cog_phase = np.array([e["phase"] for e in cog for _ in e.joints], dtype=float)
+        self.has_cogging = len(self.cog_axes) > 0
+
+        self.seed = truth.seed if seed is None else seed
+        self.sensors = Sensors(drives, truth.current_noise_std, np.random.default_rng(self.seed))
+        self.cycle_hz = float(drives.cycle_hz or 500.0)
+        self.h_max = 1.0 / (self.cycle_hz * truth.substeps)
+        if self.dyn.ne:
+            self.h_max = min(self.h_max, MAX_OMEGA_H / self._max_spring_omega())
+
+        # fast path applies when rigid, armature diagonal and no position/velocity-dependent extras
+        self._simple = (self.dyn.fast and not self.has_cogging and not self.friction.has_stribeck
+                        and self.friction.constant)
+        self._active = self.friction.active.copy()
+        self._any_active = bool(self._active.any())
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    def reset(self, q_joint=None) -> None:
+        """Put the arm at rest at ``q_joint`` (link angles, drive order; zeros by default), time 0.
+
+        Elastic joints start deflected to their static equilibrium under gravity (as if the motors had held the
+        arm there); thermal rise and transmitted load start from the config's initial values.
+        """
+        n, d = self.n, self.dyn
+        q_joint = np.zeros(n) if q_joint is None else np.asarray(q_joint, dtype=float).reshape(n)
+        q_pin = d.perm @ q_joint
+        delta = np.zeros(d.ne)
+        if d.ne:
+            g = d.gravity_link(q_pin)
+            for c, j in enumerate(self.elastic_joints):
+                gj = float(d.perm[:, j] @ g)
+                excess = -gj / self.spring_k[c]
+                delta[c] = excess + math.copysign(self.spring_half[c], excess) if excess != 0 else 0.0
+        self._z = d.z_from_link(q_pin, delta)
+        self._zd = np.zeros(d.nz)
+        self._t = 0.0
+        self._sign = np.zeros(n)
+        self._tau = np.zeros(n)
+        self._a = None                 # cached acceleration at the current state (FSAL)
+        self._stuck = None
+        self._temperature_rise = self.friction.thermal_initial.copy()
+        self._load = np.zeros(n)
+        self._refresh_levels()
+
+    def set_state(self, q_motor, dq_motor, delta=None, delta_dot=None) -> None:
+        """Set motor angles/velocities (and deflections) directly; friction signs follow the velocities."""
+        n, d = self.n, self.dyn
+        self._z = np.concatenate([np.asarray(q_motor, dtype=float).reshape(n),
+                                  np.zeros(d.ne) if delta is None else np.asarray(delta, dtype=float)])
+        self._zd = np.concatenate([np.asarray(dq_motor, dtype=float).reshape(n),
+                                   np.zeros(d.ne) if delta_dot is None else np.asarray(delta_dot, dtype=float)])
+        self._sign = np.sign(self._zd[:n]) * self._active
+        self._a = None
+        self._stuck = None
+        self._refresh_levels()
+
+    @property
+    def t(self) -> float:
+        return self._t
+
+    @property
+    def q_motor(self) -> np.ndarray:
+        return self._z[: self.n].copy()
+
+    @property
+    def dq_motor(self) -> np.ndarray:
+        return self._zd[: self.n].copy()
+
+    @property
+    def q_joint(self) -> np.ndarray:
+        """Link angles (drive order); = ``K q_motor + joint_offset`` plus the deflection of elastic joints."""
+        return self.dyn.perm.T @ self.dyn.q_link(self._z)
+
+    @property
+    def dq_joint(self) -> np.ndarray:
+        return self.dyn.perm.T @ (self.dyn.J @ self._zd)
+
+    @property
+    def deflection(self) -> np.ndarray:
+        """Deflections ``q_link - q_gear`` of the elastic joints (order of ``elastic_joints``), rad."""
+        return self._z[self.n:].copy()
+
+    @property
+    def stuck(self) -> np.ndarray:
+        """Axes held by stiction during the last step (bool, n)."""
+        return np.zeros(self.n, dtype=bool) if self._stuck is None else self._stuck.copy()
+
+    @property
+    def temperature_rise(self) -> np.ndarray:
+        """Winding temperature rise of ``thermal_drift`` axes, K."""
+        return self._temperature_rise.copy()
+
+    # ------------------------------------------------------------------ physics
+    def inverse_dynamics(self, q_motor, dq_motor, ddq_motor) -> np.ndarray:
+        """Eq. 1 with the true parameters, no friction: ``K^T (M q_dd + h q_d + g) + J_a theta_m_dd`` (N*m).
+
+        Uses the true link model (including a ``payload_change``); elasticity and cogging are not part of eq. 1.
+        """
+        return self.dyn.inverse_dynamics(q_motor, dq_motor, ddq_motor)
+
+    def gravity_torque(self, q_joint=None) -> np.ndarray:
+        """Motor-side gravity torque ``K^T g(q)`` at link angles ``q_joint`` (default: the current ones)."""
+        q_joint = self.q_joint if q_joint is None else np.asarray(q_joint, dtype=float)
+        q_motor = self.robot.drives.motor_from_joint(q_joint)
+        z = np.zeros(self.n)
+        return self.dyn.inverse_dynamics(q_motor, z, z)
+
+    def forward_dynamics(self, q_motor, dq_motor, tau_motor) -> np.ndarray:
+        """Motor accelerations of eq. 1 for sliding axes (friction sign from the velocities), rigid joints.
+
+        The plant's own acceleration function, for checks: no state is changed.
+        """
+        saved = (self._z, self._zd, self._sign, self._a, self._stuck)
+        try:
+            self.set_state(q_motor, dq_motor)
+            return self._accel(self._z, self._zd, np.asarray(tau_motor, dtype=float), None)[: self.n].copy()
+        finally:
+            self._z, self._zd, self._sign, self._a, self._stuck = saved
+            self._refresh_levels()
+
+    def energy(self) -> float:
+        """Total mechanical energy: links + rotors kinetic, gravity potential, springs (J)."""
+        return self.dyn.kinetic_energy(self._z, self._zd) + self.dyn.potential_energy(self._z) + self._spring_energy()
+
+    def _spring_energy(self) -> float:
+        if not self.dyn.ne:
+            return 0.0
+        delta = self._z[self.n:]
+        excess = delta - np.clip(delta, -self.spring_half, self.spring_half)
+        return float(0.5 * np.sum(self.spring_k * excess ** 2))
+
+    def _max_spring_omega(self) -> float:
+        """Highest natural frequency of the springs against the inertia at the zero pose (rad/s)."""
+        d = self.dyn
+        z = d.z_from_link(np.zeros(self.n))
+        Mz = d.mass_matrix_z(d.q_link(z))
+        Kz = np.zeros((d.nz, d.nz))
+        Kz[self.n:, self.n:] = np.diag(self.spring_k)
+        w2 = np.linalg.eigvals(np.linalg.solve(Mz, Kz)).real
+        return float(np.sqrt(max(w2.max(), 1e-12)))
+
+    def _refresh_levels(self):
+        """Friction levels (f_c, f_s per axis, in each axis's current direction) for this step."""
+        fr = self.friction
+        scale = fr.scale(self._temperature_rise) if fr.has_thermal else None
+        self._scale = scale
+        self._fc, self._fs = fr.levels(self._sign, scale, self._load if fr.has_load else None)
+        self._coulomb_signed = self._sign * self._fc
+
+    def _forces(self, z, zd, tau):
+        """Generalized forces Q (nz): motor rows tau + cogging - friction (sliding law), spring rows."""
+        n = self.n
+        Q = np.empty(self.dyn.nz)
+        f = self.friction.sliding(zd[:n], self._sign, self._fc, self._fs, self._scale)
+        Q[:n] = tau - f
+        if self.has_cogging:
+            k = self.cog_axes
+            Q[k] += self.cog_amp * np.sin(self.cog_periods * z[k] + self.cog_phase)
+        if self.dyn.ne:
+            delta, ddelta = z[n:], zd[n:]
+            excess = delta - np.clip(delta, -self.spring_half, self.spring_half)
+            contact = np.abs(delta) >= self.spring_half
+            Q[n:] = -self.spring_k * excess - self.spring_d * ddelta * contact
+        return Q
+
+    def _accel(self, z, zd, tau, stuck):
+        """z_dd at (z, zd) under motor torque ``tau`` with the current friction signs and stuck set."""
+        d = self.dyn
+        if stuck is None and self._simple:
+            # eq. 1 as ABA with armature: (M + A) q_dd = K^-T (tau - B w - f_c sgn) - nle
+            tau_j = d.Kp_inv_T @ (tau - self._coulomb_signed - self.friction.viscous * zd)
+            a_j = pin.aba(d.model_arm, d.data_arm, d.Kp @ z + d.off_p, d.Kp @ zd, tau_j)
+            self._lam = None
+            return d.Kp_inv @ a_j
+        Q = self._forces(z, zd, tau)
+        if stuck is None and d.fast:
+            a_j = pin.aba(d.model_arm, d.data_arm, d.Kp @ z + d.off_p, d.Kp @ zd, d.Kp_inv_T @ Q)
+            self._lam = None
+            self._Qm = Q
+            return d.Kp_inv @ a_j
+        a, lam = d.solve(z, zd, Q, stuck)
+        self._lam = lam
+        self._Qm = Q
+        return a
+
+    def _stick_solve(self, z, zd, tau, candidates):
+        """Decide which resting axes stay stuck; return (acceleration, stuck set or None)."""
+        stuck = candidates.copy()
+        fr = self.friction
+        while True:
+            a, lam = self.dyn.solve(z, zd, self._forces(z, zd, tau), stuck)
+            direction = np.sign(lam)
+            _, fs = fr.levels(direction, self._scale, self._load if fr.has_load else None)
+            release = stuck & (np.abs(lam) > fs)
+            if not release.any():
+                break
+            self._sign[release] = direction[release]
+            stuck &= ~release
+            self._refresh_levels()
+        self._lam = lam
+        return a, (stuck if stuck.any() else None)
+
+    def _substep(self, h, tau):
+        n = self.n
+        z, zd = self._z, self._zd
+        stuck = None
+        if self._any_active:
+            candidates = self._active & (zd[:n] == 0.0)
+            if candidates.any():
+                self._a, stuck = self._stick_solve(z, zd, tau, candidates)
+        a = self._a
+        if a is None:
+            a = self._accel(z, zd, tau, stuck)
+        zd_half = zd + (0.5 * h) * a
+        z_new = z + h * zd_half
+        a_new = self._accel(z_new, zd + h * a, tau, stuck)
+        zd_new = zd_half + (0.5 * h) * a_new
+        if self.friction.has_load:
+            Qm = self._Qm[:n] if stuck is None else self._Qm[:n] - self._lam
+            self._load = Qm - self.dyn.motor_inertia * a_new[:n]
+        self._stuck = stuck
+        if self._any_active:
+            sgn = self._sign
+            crossed = (sgn * zd_new[:n] <= 0.0) & (sgn != 0.0)
+            if crossed.any():
+                zd_new[:n][crossed] = 0.0
+                sgn[crossed] = 0.0
+                a_new = None
+            if stuck is not None:
+                a_new = None
+            if a_new is None or not self.friction.constant:
+                self._refresh_levels()
+        self._z, self._zd, self._a = z_new, zd_new, a_new
+
+    def step(self, tau_motor, duration: float) -> None:
+        """Apply motor-shaft torques ``tau_motor`` (N*m, drive order) held for ``duration`` s.
+
+        Uses ``ceil(duration / h_max)`` equal fixed steps; deterministic (no randomness in the physics).
+        """
+        tau = np.asarray(tau_motor, dtype=float)
+        if tau.shape != (self.n,):
+            tau = tau.reshape(self.n)
+        if duration <= 0:
+            if duration < 0:
+                raise ValueError(f"duration must be >= 0, got {duration}")
+            return
+        if not np.array_equal(tau, self._tau):
+            self._a = None
+            self._tau = tau.copy()
+        steps = max(1, math.ceil(duration / self.h_max - 1e-9))
+        h = duration / steps
+        fr = self.friction
+        if fr.has_thermal:
+            self._refresh_levels()
+        for _ in range(steps):
+            self._substep(h, tau)
+        self._t += duration
+        if fr.has_thermal:
+            # first-order winding temperature, exact for the held current: dT' = (heating I^2 - dT) / tau_th
+            current = tau / self.sensors.torque_constant
+            target = fr.thermal_heating * current ** 2
+            decay = np.exp(-duration / fr.thermal_time_constant)
+            self._temperature_rise = target + (self._temperature_rise - target) * decay
+            self._refresh_levels()
+
+    def read_sensors(self) -> SensorReading:
+        """What the drives report now: encoder counts/position (quantised), current (noisy, quantised), kt*I."""
+        return self.sensors.read(self._z[: self.n], self._tau, self._t)
