@@ -77,6 +77,12 @@ class Reference:
             tau = tau + self.B * dq_motor + self.fc * np.sign(dq_motor)
         return tau
 
+    def motor_inertia_matrix(self, q_joint):
+        """Motor-side inertia ``K^T M(q) K + diag(J_a)``."""
+        M = pin.crba(self.model, self.data, np.asarray(q_joint, dtype=float))
+        M = np.triu(M) + np.triu(M, 1).T
+        return self.K.T @ M @ self.K + np.diag(self.Ja)
+
     def gravity_motor(self, q_joint):
         """Motor-side gravity ``K^T g(q)`` (eq. 2-4)."""
         return self.K.T @ pin.computeGeneralizedGravity(self.model, self.data, np.asarray(q_joint, dtype=float))
@@ -113,13 +119,15 @@ def breakaway(plant, axis, hold, direction, rate=0.01, dt=0.002, t_max=20.0, sta
     raise AssertionError(f"axis {axis} never broke away (last torque {tau[axis]})")
 
 
-def constant_speed(plant, ref, axis, speed, q0=None, settle=0.25, measure=0.25, dt=0.002, gains=(5e-3, 0.1),
+def constant_speed(plant, ref, axis, speed, q0=None, settle=0.3, measure=0.25, dt=0.002, bandwidth=100.0,
                    hold_gravity=True, record=None):
     """Eq. 5 constant angular velocity test: a velocity PI loop on motor ``axis`` (gravity feed-forward from the
-    reference model), the other axes held by stiction against their gravity torque. Returns (mean motor speed
+    reference model, gains scaled to the axis' inertia), the other axes held by stiction against their gravity torque. Returns (mean motor speed
     from the encoder, mean measured torque minus gravity) over the measuring window."""
     plant.reset(q0)
-    kp, ki = gains
+    inertia = ref.motor_inertia_matrix(plant.q_joint)[axis, axis]
+    kp = bandwidth * inertia                 # PI: closed-loop bandwidth ~ `bandwidth` rad/s, zero at bandwidth/3
+    ki = kp * bandwidth / 3
     integ = 0.0
     n = plant.n
     speeds, torques = [], []
