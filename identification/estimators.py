@@ -6,6 +6,10 @@
 Shapes: ``H`` is (N, m, p) (N samples, m rows per sample, e.g. one per motor) or (N, p); ``y`` is (N, m) or (N,);
 ``sample_weight`` (same shape as ``y``) weights rows (0 excludes a row, e.g. an axis near zero speed).
 
+Standard errors: ``sigma^2 (H^T H)^-1`` assumes independent rows. Rows of low-pass filtered signals are not: a
+zero-phase filter of cut-off fc at sample rate fs leaves about ``2 fc / fs`` independent samples per sample, so the
+pipeline passes ``correlation_length = fs / (2 fc)`` and the variances are multiplied by it (default 1: white rows).
+
 Why not filterpy's ``KalmanFilter`` in the loop: a Kalman filter with a constant state (F = I, Q = 0), the regressor
 block as its measurement matrix H and R = I *is* RLS, and ``RecursiveLeastSquares(method="recursive")`` runs exactly
 that update (tests check it equals filterpy's ``KalmanFilter.update`` on a small case). But 35,000 Python-level
@@ -48,7 +52,8 @@ class RecursiveLeastSquares:
     """
 
     def __init__(self, n_iter: int | None = 35000, p0: float = 1e6, theta0=None, method: str = "block",
-                 n_checkpoints: int = 200, P0=None):
+                 n_checkpoints: int = 200, P0=None, correlation_length: float = 1.0):
+        self.correlation_length = correlation_length
         self.n_iter = n_iter
         self.p0 = p0
         self.theta0 = theta0
@@ -83,7 +88,7 @@ class RecursiveLeastSquares:
         r = (y - np.einsum("smp,p->sm", H, self.coef_)) * np.sqrt(w)
         dof = max(int(np.sum(w > 0)) - H.shape[-1], 1)
         self.sigma2_ = float(np.sum(r ** 2) / dof)
-        self.std_ = np.sqrt(np.clip(np.diag(self.cov_), 0, None) * self.sigma2_)
+        self.std_ = np.sqrt(np.clip(np.diag(self.cov_), 0, None) * self.sigma2_ * self.correlation_length)
         self.n_iter_ = N
         return self
 
@@ -157,8 +162,9 @@ class BatchLeastSquares:
     OLS residual RMS of motor j, Gautier's WLS). After ``fit``: ``coef_``, ``cov_``, ``std_``, ``sigma_`` (per row
     type)."""
 
-    def __init__(self, weighting: str = "ols"):
+    def __init__(self, weighting: str = "ols", correlation_length: float = 1.0):
         self.weighting = weighting
+        self.correlation_length = correlation_length
 
     def fit(self, H, y, sample_weight=None):
         H, y, w = _as_blocks(H, y, sample_weight)
@@ -176,7 +182,8 @@ class BatchLeastSquares:
             self.std_ = np.sqrt(np.clip(np.diag(cov) * sig, 0, None))
         else:
             raise ValueError(f"unknown weighting {self.weighting!r} (ols | wls)")
-        self.coef_, self.cov_ = coef, cov if self.weighting == "wls" else cov * sig
+        self.coef_, self.cov_ = coef, (cov if self.weighting == "wls" else cov * sig) * self.correlation_length
+        self.std_ = self.std_ * np.sqrt(self.correlation_length)
         self.n_params_ = p
         return self
 

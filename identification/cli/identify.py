@@ -1,0 +1,147 @@
+"""``js2-identify LOG... -o OUTDIR``: the dynamic model of an arm from its js2 logs (thin CLI over the pipeline)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+DESCRIPTION = """\
+Identify the dynamic model of a manipulator (eq. 1 of Sakamoto et al., motor side) from js2 logs.
+
+Give it the log(s) of one session, e.g. from `js2-acquire --trial all -o run.mcap`, holding:
+  static        breakaway torque ramps per axis      -> static friction f_s and gravity (eq. 2-4)
+  velocity      constant speeds per axis             -> viscous B and Coulomb f_c (eq. 5, Fig. 2)
+  acceleration  all axes accelerating together       -> inertial parameters and motor inertias by RLS
+  validation    a different motion                   -> held-out check of the model
+The default "mixed" method (the paper's) fixes friction from the sequential tests and fits the rest;
+"simultaneous" fits everything from the acceleration trial (needed when there are no friction tests,
+e.g. imported recordings).
+
+Writes into OUTDIR:
+  model.yaml              all parameters with standard errors, method, sha256 of every input
+  robot_identified.urdf   the URDF with identified (physically consistent) link inertials
+  report.html             Fig. 2, Fig. 3, validation plots and tables (open in a browser)
+  verdict.json            pass/fail against thresholds (condition number, validation NRMS, ...)
+
+Exit codes: 0 done (and verdict passed, with --strict), 1 verdict failed with --strict,
+2 bad input (message names the file and the problem).
+"""
+
+EPILOG = """\
+examples:
+  js2-identify run.mcap -o model/
+  js2-identify static.mcap velocity.mcap accel.mcap --validate valid.mcap -o model/ --strict
+  js2-identify imported.mcap --method simultaneous --fit-trials excitation -o tx40/
+"""
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="js2-identify", description=DESCRIPTION, epilog=EPILOG,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("logs", nargs="+", metavar="LOG", help="js2 log files (.mcap) of one session")
+    p.add_argument("-o", "--outdir", required=True, help="output folder (created if needed)")
+    p.add_argument("--method", choices=["mixed", "simultaneous"], default="mixed",
+                   help="which estimate becomes the model (default: mixed; both are always computed when possible)")
+    p.add_argument("--validate", nargs="*", default=[], metavar="LOG",
+                   help="extra log(s) used only for validation")
+    p.add_argument("--fit-trials", default="acceleration",
+                   help="comma-separated trial names whose data fit the inertial parameters (default: acceleration)")
+    p.add_argument("--validation-trials", default="validation",
+                   help="comma-separated trial names held out for validation (default: validation); without any, "
+                        "the last --holdout of the fitting data is held out")
+    p.add_argument("--holdout", type=float, default=0.25, help="held-out fraction when there is no validation data")
+    p.add_argument("--fc-velocity", type=float, default=50.0, help="velocity filter cut-off, Hz (paper: 50)")
+    p.add_argument("--fc-acceleration", type=float, default=7.0,
+                   help="acceleration and torque filter cut-off, Hz (paper: 7)")
+    p.add_argument("--iterations", type=int, default=35000,
+                   help="RLS iterations (samples), 0 = all (paper: about 35,000)")
+    p.add_argument("--offsets", action="store_true", help="add a constant torque offset per axis to the model")
+    p.add_argument("--fig3", default="J_4z,B_4,fc_4",
+                   help="parameters plotted in Fig. 3 (paper's J_<i>z, or standard names such as Ja_2, B_4, fc_4, "
+                        "Ixx_link4)")
+    p.add_argument("--max-cond", type=float, default=None, help="verdict threshold on the condition number")
+    p.add_argument("--max-nrms", type=float, default=None, help="verdict threshold on validation NRMS per axis (0.1 = 10%%)")
+    p.add_argument("--strict", action="store_true", help="exit 1 when the verdict fails")
+    p.add_argument("--no-report", action="store_true", help="skip report.html (faster)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars or summary")
+    return p
+
+
+def main(argv=None) -> int:
+    args = parser().parse_args(argv)
+    from js2spec.errors import Js2Error
+
+    from identification.pipeline import IdentificationError, IdentifyOptions, identify
+    from identification.signals import FilterSettings
+
+    try:
+        opt = IdentifyOptions(
+            method=args.method,
+            filters=FilterSettings(fc_velocity_hz=args.fc_velocity, fc_acceleration_hz=args.fc_acceleration),
+            n_iter=args.iterations or None,
+            fit_trials=tuple(t.strip() for t in args.fit_trials.split(",") if t.strip()),
+            validation_trials=tuple(t.strip() for t in args.validation_trials.split(",") if t.strip()),
+            holdout=args.holdout, offsets=args.offsets,
+            fig3=tuple(t.strip() for t in args.fig3.split(",") if t.strip()),
+            progress=not args.quiet, validate_paths=tuple(args.validate))
+        ident = identify(args.logs, opt)
+        for name in opt.fig3:
+            ident.param_index(name)
+        from identification import output
+
+        out = Path(args.outdir)
+        out.mkdir(parents=True, exist_ok=True)
+        th = {}
+        if args.max_cond is not None:
+            th["condition_number_max"] = args.max_cond
+        if args.max_nrms is not None:
+            th["validation_nrms_max"] = args.max_nrms
+        output.write_model(ident, out)
+        output.write_urdf(ident, out)
+        v = output.write_verdict(ident, out, th)
+        if not args.no_report:
+            from identification.report import write_report
+
+            write_report(ident, out, v)
+    except (Js2Error, IdentificationError) as exc:
+        print(f"js2-identify: error: {exc}", file=sys.stderr)
+        return 2
+    except ValueError as exc:
+        print(f"js2-identify: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"js2-identify: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    if not args.quiet:
+        print(summary(ident, v, out))
+    for note in ident.notes:
+        if "truncated" in note:
+            print(f"js2-identify: note: {note}", file=sys.stderr)
+    if args.strict and not v["pass"]:
+        print("js2-identify: verdict FAILED (see verdict.json)", file=sys.stderr)
+        return 1
+    return 0
+
+
+def summary(ident, v, out) -> str:
+    import numpy as np
+
+    ja, _, alone = ident.motor_inertia()
+    lines = [f"method: {ident.chosen}   base parameters: {ident.bp.n}   condition number: {ident.condition_number:.3g}"
+             f"   fit samples: {ident.n_fit_samples}"]
+    lines.append(f"{'axis':>6} {'f_s':>10} {'f_c':>10} {'B':>10} {'J_a':>10} {'val RMS':>10} {'NRMS':>7}")
+    for k, j in enumerate(ident.arm.joints):
+        lines.append(f"{j:>6} {ident.friction_static[k]:10.4g} {ident.friction_coulomb[k]:10.4g} "
+                     f"{ident.friction_viscous[k]:10.4g} {ja[k]:10.4g}{'' if alone[k] else '*'} "
+                     f"{ident.validation['rms'][k]:10.4g} {100 * ident.validation['nrms'][k]:6.2f}%")
+    if not all(alone):
+        lines.append("  * J_a regrouped with link inertias (see model.yaml motor_inertia_separately_identified)")
+    for n in ident.notes:
+        lines.append(f"note: {n}")
+    lines.append(f"verdict: {'PASS' if v['pass'] else 'FAIL'}   ->  {out}/model.yaml, robot_identified.urdf, "
+                 f"report.html, verdict.json")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,169 @@
+"""A physically consistent set of standard parameters that agrees with the identified base parameters.
+
+Base parameters (``beta = E pi``) can be any numbers; a simulator needs, per link, a positive mass, a centre of mass
+and an inertia tensor that is positive definite and satisfies the triangle inequalities (a real body). Every such body
+has a positive-definite 4x4 pseudo-inertia ``J = [[Sigma, h], [h^T, m]]`` with ``Sigma = 1/2 tr(I) 1 - I``
+(Wensing et al. 2017); the log-Cholesky factor ``J = U U^T`` (U upper triangular with ``exp`` on the diagonal,
+Rucker & Wensing 2022) maps 10 free numbers onto exactly these bodies. Motor inertias are kept >= 0 (squared).
+
+We minimise, over the link parameters (log-Cholesky) and motor inertias,
+
+    (E pi - beta_hat)^T A (E pi - beta_hat) / (N s^2)  +  lam * || (pi_links - pi_urdf) / scale ||^2
+
+where A = W_b^T W_b is the base regressor's Gram matrix on the fitting data (so the first term is the rise in the
+torque residual, in units of its noise variance) and the small prior keeps the directions the data cannot see at the
+URDF's values. ``scipy.optimize.least_squares`` (trust region), friction is taken as identified.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import least_squares
+
+
+def pseudo_from_params(p10: np.ndarray) -> np.ndarray:
+    """Pinocchio dynamic parameters [m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz] (about the frame origin) ->
+    pseudo-inertia J (4x4)."""
+    m, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz = p10
+    I = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    S = 0.5 * np.trace(I) * np.eye(3) - I
+    J = np.zeros((4, 4))
+    J[:3, :3] = S
+    J[:3, 3] = J[3, :3] = [hx, hy, hz]
+    J[3, 3] = m
+    return J
+
+
+def params_from_pseudo(J: np.ndarray) -> np.ndarray:
+    S = J[:3, :3]
+    I = np.trace(S) * np.eye(3) - S
+    h = J[:3, 3]
+    return np.array([J[3, 3], h[0], h[1], h[2], I[0, 0], I[0, 1], I[1, 1], I[0, 2], I[1, 2], I[2, 2]])
+
+
+_IU = np.triu_indices(4)
+
+
+def logchol_to_pseudo(th: np.ndarray) -> np.ndarray:
+    U = np.zeros((4, 4))
+    U[_IU] = th
+    d = np.diag_indices(4)
+    U[d] = np.exp(U[d])
+    return U @ U.T
+
+
+def pseudo_to_logchol(J: np.ndarray) -> np.ndarray:
+    # J = U U^T with U upper triangular: flip to use the lower Cholesky
+    P = np.eye(4)[::-1]
+    L = np.linalg.cholesky(P @ J @ P)
+    U = P @ L @ P
+    U = U.copy()
+    d = np.diag_indices(4)
+    U[d] = np.log(U[d])
+    return U[_IU]
+
+
+def is_physical(p10: np.ndarray, tol: float = 0.0) -> bool:
+    """Positive mass, PD rotational inertia about the COM, triangle inequalities."""
+    m = p10[0]
+    if m <= 0:
+        return False
+    c = p10[1:4] / m
+    ixx, ixy, iyy, ixz, iyz, izz = p10[4:]
+    Io = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    Ic = Io - m * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+    ev = np.linalg.eigvalsh(Ic)
+    if ev.min() <= -tol:
+        return False
+    a, b, cc = ev
+    return a + b >= cc - tol and a + cc >= b - tol and b + cc >= a - tol
+
+
+def nearest_physical(p10: np.ndarray, floor_mass: float = 1e-3) -> np.ndarray:
+    """Project a (possibly unphysical) parameter set onto a physical one (eigenvalue clipping of J)."""
+    J = pseudo_from_params(p10)
+    J = 0.5 * (J + J.T)
+    w, V = np.linalg.eigh(J)
+    w = np.maximum(w, 1e-9 * max(abs(w).max(), 1e-9))
+    J = V @ np.diag(w) @ V.T
+    if J[3, 3] < floor_mass:
+        J *= floor_mass / max(J[3, 3], 1e-12)
+    return params_from_pseudo(J)
+
+
+class PhysicalConsistencyFit:
+    """Fit physically consistent standard parameters to base parameters (see module docstring).
+
+    ``fit(E, beta_hat, gram, inertial_nominal, n_links, motor_cols, fixed)``: ``E`` (r, p) base map restricted to
+    the parameters being fitted, ``gram`` (r x r) data information matrix (A / (N s^2)), ``fixed`` (p,) values for
+    columns not fitted (friction), NaN where fitted. After it: ``links_`` (n_links, 10), ``motor_inertia_``,
+    ``pi_`` (p,), ``beta_`` (E pi), ``physical_`` (bool per link), ``cost_``.
+    """
+
+    def __init__(self, prior_weight: float = 1e-2, max_nfev: int = 200):
+        self.prior_weight = prior_weight
+        self.max_nfev = max_nfev
+
+    def fit(self, E, beta_hat, gram, inertial_nominal, n_links, motor_cols, fixed):
+        E = np.asarray(E, float)
+        p = E.shape[1]
+        nl = 10 * n_links
+        fixed = np.asarray(fixed, float)
+        free_other = [j for j in range(nl, p) if np.isnan(fixed[j]) and j not in set(motor_cols)]
+        L = np.linalg.cholesky(gram + 1e-12 * np.trace(gram) / len(gram) * np.eye(len(gram))).T
+        nom = np.asarray(inertial_nominal, float).reshape(n_links, 10)
+        th0 = []
+        for i in range(n_links):
+            pi_i = nom[i] if is_physical(nom[i]) else nearest_physical(nom[i])
+            th0.append(pseudo_to_logchol(pseudo_from_params(pi_i)))
+        th0 = np.concatenate(th0)
+        # scales for the prior: the link's mass, first moment and inertia magnitudes
+        sc = []
+        for i in range(n_links):
+            m = max(nom[i, 0], 1e-2)
+            h = max(np.linalg.norm(nom[i, 1:4]), 0.05 * m * 0.1)
+            I = max(np.abs(nom[i, 4:]).max(), 1e-6)
+            sc.append(np.r_[m, h, h, h, I, I, I, I, I, I])
+        sc = np.concatenate(sc)
+        base_fixed = np.where(np.isnan(fixed), 0.0, fixed)
+        mc = np.asarray(motor_cols, int)
+
+        def assemble(x):
+            pi = base_fixed.copy()
+            links = np.concatenate([params_from_pseudo(logchol_to_pseudo(x[10 * i:10 * i + 10]))
+                                    for i in range(n_links)])
+            pi[:nl] = links
+            k = nl + 0
+            xm = x[10 * n_links:10 * n_links + len(mc)]
+            pi[mc] = xm ** 2
+            xo = x[10 * n_links + len(mc):]
+            pi[free_other] = xo
+            return pi
+
+        # motor inertias start from the base parameter that leads with them, else 0
+        ja0 = np.zeros(len(mc))
+        xo0 = np.zeros(len(free_other))
+        x0 = np.concatenate([th0, np.sqrt(np.abs(ja0)) + 1e-4, xo0])
+        # refine motor inertia start: least squares on the linear part with links at nominal
+        pi_nom = assemble(x0)
+        Am = E[:, mc]
+        resid0 = beta_hat - E @ np.where(np.isin(np.arange(p), mc), 0.0, pi_nom)
+        ja_ls, *_ = np.linalg.lstsq(Am, resid0, rcond=None)
+        x0[10 * n_links:10 * n_links + len(mc)] = np.sqrt(np.clip(ja_ls, 1e-12, None))
+        lam = np.sqrt(self.prior_weight)
+
+        def res(x):
+            pi = assemble(x)
+            r1 = L @ (E @ pi - beta_hat)
+            r2 = lam * (pi[:nl] - nom.reshape(-1)) / sc
+            return np.concatenate([r1, r2])
+
+        sol = least_squares(res, x0, method="trf", max_nfev=self.max_nfev, x_scale="jac")
+        pi = assemble(sol.x)
+        self.pi_ = pi
+        self.links_ = pi[:nl].reshape(n_links, 10)
+        self.motor_inertia_ = pi[mc]
+        self.beta_ = E @ pi
+        self.physical_ = np.array([is_physical(l, tol=1e-12) for l in self.links_])
+        self.cost_ = float(sol.cost)
+        self.success_ = bool(sol.success)
+        return self

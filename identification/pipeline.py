@@ -1,0 +1,461 @@
+"""From js2 logs to the model: the compound (mixed) and simultaneous methods end to end.
+
+``identify(paths, options) -> Identification``; the CLI (``js2-identify``) only parses arguments, calls this and the
+writers in :mod:`identification.output`. Steps (the paper's, numbered as in ``docs/identification.md``):
+
+1. read the logs (``js2spec.log.read_log``), check they describe the same arm, build the model (URDF + K);
+2. signals: K mapping, zero-phase filters (50 Hz velocity, 7 Hz acceleration and torque), lost cycles, trims;
+3. sequential part: static test (eq. 2-4) -> f_s and gravity at the poses; constant velocity (eq. 5) -> B, f_c;
+4. regressor of eq. 1 on the acceleration trial, base parameters (pivoted QR), condition number;
+5. mixed method: friction fixed, RLS over the acceleration trial (35,000 iterations or all samples);
+   simultaneous method: the same RLS with the friction columns free; batch OLS/WLS for both;
+6. physically consistent standard parameters fitted to the base parameters;
+7. validation on data not used for fitting (a ``validation`` trial, ``--validate`` logs, or a held-out tail).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from js2spec.errors import ConfigError, Js2Error, LogError
+from js2spec.log import read_log
+
+from . import signals as sg
+from .base import BaseParameters, base_parameters, condition_number, friction_mask
+from .consistency import PhysicalConsistencyFit
+from .estimators import BatchLeastSquares, RecursiveLeastSquares
+from .regressor import ArmModel, arm_model, build_regressor, column_groups, standard_names
+from .sequential import ConstantVelocityTest, StaticFrictionTest
+from .trials import breakaways, trial_spans, velocity_segments
+
+
+class IdentificationError(Js2Error):
+    """The input cannot be identified as asked (a trial missing, too little data, ...); names the file."""
+
+
+@dataclass
+class IdentifyOptions:
+    method: str = "mixed"                    # mixed | simultaneous: which one is the model written out
+    filters: sg.FilterSettings = field(default_factory=sg.FilterSettings)
+    n_iter: int | None = 35000               # RLS iterations (samples); None = all
+    fit_trials: tuple = ("acceleration",)    # trials whose samples feed the inertial fit
+    validation_trials: tuple = ("validation",)
+    holdout: float = 0.25                    # tail fraction held out when no validation data exists
+    offsets: bool = False                    # constant torque offset per axis (off_k)
+    v_min_fraction: float = 0.03             # rows with |motor speed| below this fraction of the axis's p99 speed
+                                             # are left out of the dynamic fit (stiction zone, eq. 1 has sgn only)
+    fig3: tuple = ("J_4z", "B_4", "fc_4")    # parameters whose RLS convergence is plotted (Fig. 3)
+    physical: bool = True
+    progress: bool = False
+    validate_paths: tuple = ()               # extra held-out logs
+
+
+@dataclass
+class MethodResult:
+    name: str                                # "mixed" or "simultaneous"
+    free: np.ndarray                         # indices (into base parameters) estimated by the RLS
+    beta: np.ndarray                         # all base parameter values (fixed ones included)
+    std: np.ndarray
+    rls: RecursiveLeastSquares
+    ols: BatchLeastSquares
+    wls: BatchLeastSquares
+    history: np.ndarray                      # (checkpoints, n_base) full base vector at each checkpoint
+    history_iter: np.ndarray
+
+
+@dataclass
+class Identification:
+    options: IdentifyOptions
+    arm: ArmModel
+    bp: BaseParameters
+    logs: list
+    inputs: list[dict]
+    notes: list[str]
+    static: StaticFrictionTest | None
+    velocity: ConstantVelocityTest | None
+    friction_static: np.ndarray
+    friction_static_std: np.ndarray
+    friction_coulomb: np.ndarray
+    friction_coulomb_std: np.ndarray
+    friction_viscous: np.ndarray
+    friction_viscous_std: np.ndarray
+    methods: dict[str, MethodResult]
+    chosen: str
+    condition_number: float
+    condition_number_raw: float
+    n_fit_samples: int
+    validation: dict
+    physical: PhysicalConsistencyFit | None
+    fit_data: dict = field(default_factory=dict)
+    val_data: dict = field(default_factory=dict)
+
+    @property
+    def model(self) -> MethodResult:
+        return self.methods[self.chosen]
+
+    def motor_inertia(self) -> tuple[np.ndarray, np.ndarray, list[bool]]:
+        """Per-motor J_a (kg m^2), std and whether it is identified separately (not regrouped)."""
+        n = self.arm.n
+        ja, sd, alone = np.full(n, np.nan), np.full(n, np.nan), []
+        for k in range(n):
+            name = f"Ja_{k + 1}"
+            a = self.bp.is_alone(name)
+            alone.append(a)
+            i = self.bp.index_of(name)
+            if a:
+                ja[k], sd[k] = self.model.beta[i], self.model.std[i]
+            elif self.physical is not None:
+                ja[k] = self.physical.motor_inertia_[k]
+        return ja, sd, alone
+
+    def param_index(self, alias: str) -> int:
+        return resolve_parameter(self.arm, self.bp, alias)
+
+
+def resolve_parameter(arm: ArmModel, bp: BaseParameters, alias: str) -> int:
+    """Base-parameter index of a name: a standard name (``Ixx_link4``, ``Ja_2``, ``B_4``, ``fc_4``) or the paper's
+    ``J_<i>z`` (link i's inertia about its own joint axis), 1-based axis numbers."""
+    a = alias.strip()
+    if a.upper().startswith("J_") and a.lower().endswith("z") and a[2:-1].isdigit():
+        std = arm.axis_inertia_name(int(a[2:-1]) - 1)
+    else:
+        std = a
+    if std not in bp.std_names:
+        raise IdentificationError(f"unknown parameter {alias!r}: use a standard name such as "
+                                  f"{bp.std_names[0]!r}, 'Ja_1', 'B_1', 'fc_1' or the paper's 'J_4z'")
+    i = bp.index_of(std)
+    if i is None:
+        raise IdentificationError(f"parameter {alias!r} ({std}) has no effect on the torques (not identifiable)")
+    return i
+
+
+# ----------------------------------------------------------------------------------------------------------------
+
+def _progress(enabled: bool, desc: str):
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return lambda it: tqdm(it, desc=desc, leave=False, mininterval=0.3)
+
+
+def load_logs(paths) -> list:
+    logs = []
+    for p in paths:
+        log = read_log(p)
+        logs.append(log)
+    return logs
+
+
+def check_same_arm(logs) -> None:
+    ref = logs[0]
+    for lg in logs[1:]:
+        if list(lg.drives.joints) != list(ref.drives.joints) or not np.allclose(
+                lg.drives.gear_ratio_matrix, ref.drives.gear_ratio_matrix):
+            raise LogError(lg.path, f"describes a different arm (joints or gear ratios) than {ref.path}")
+        if lg.drives.torque_side != ref.drives.torque_side:
+            raise LogError(lg.path, f"torque_side '{lg.drives.torque_side}' differs from {ref.path}")
+
+
+def _arm_from_log(log) -> ArmModel:
+    try:
+        return arm_model(log.urdf_text, log.drives, urdf_name=f"{log.path}:robot.urdf")
+    except ConfigError as exc:
+        raise LogError(log.path, f"attachment robot.urdf: {exc.problem}") from None
+
+
+def _span_index(sig, t0, t1):
+    return np.flatnonzero(sig.mask_between(t0, t1))
+
+
+def _regressor_rows(arm, bp, sig, idx, offsets, progress=None):
+    """Filtered base regressor (len(idx), n, r) and filtered torque at sample indices ``idx`` of ``sig``.
+
+    The regressor is built from the 50 Hz signals (q, dq, d/dt dq) over the whole contiguous stretches that contain
+    ``idx`` (plus the filter's margin), projected on the base columns, then passed through the torque's 7 Hz filter
+    (parallel filtering), so regressor and torque have seen the same filter."""
+    if len(idx) == 0:
+        return np.zeros((0, arm.n, bp.n)), np.zeros((0, arm.n)), np.zeros((0, arm.n))
+    fs = sig.fs
+    margin = int(round(3 * sig.settings.trim * fs))
+    out_W = np.empty((len(idx), arm.n, bp.n))
+    out_v = np.empty((len(idx), arm.n))
+    pos = {int(k): i for i, k in enumerate(idx)}
+    for a, b in sig.runs:
+        inside = idx[(idx >= a) & (idx < b)]
+        if len(inside) == 0:
+            continue
+        lo, hi = max(a, int(inside[0]) - margin), min(b, int(inside[-1]) + margin + 1)
+        q = sig.q_motor[lo:hi]
+        dq = sig.dq_motor[lo:hi]
+        ddq = np.gradient(dq, 1.0 / fs, axis=0)
+        W = build_regressor(arm, q, dq, ddq, offsets=offsets, progress=progress)
+        Wb = bp.project(W)
+        Wf = sg._lp_runs(Wb.reshape(len(Wb), -1), sig.settings.fc_acceleration_hz, fs, sig.settings.order,
+                         [(0, hi - lo)]).reshape(Wb.shape)
+        rel = inside - lo
+        where = np.array([pos[int(k)] for k in inside])
+        out_W[where] = Wf[rel]
+        out_v[where] = dq[rel]
+    return out_W, sig.tau[idx], out_v
+
+
+def _row_weights(v, frac):
+    """Exclude rows (axis k at sample s) whose motor speed is in the stiction zone: |v| < frac * p99(|v_k|)."""
+    p99 = np.percentile(np.abs(v), 99, axis=0)
+    return (np.abs(v) >= frac * np.maximum(p99, 1e-12)).astype(float)
+
+
+def identify(paths, options: IdentifyOptions | None = None) -> Identification:
+    opt = options or IdentifyOptions()
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise IdentificationError("no log given")
+    notes: list[str] = []
+    logs = load_logs(paths)
+    check_same_arm(logs)
+    arm = _arm_from_log(logs[0])
+    n = arm.n
+    inputs = []
+    for lg in logs:
+        inputs.append({"path": str(lg.path), "sha256": lg.sha256, "source": lg.source, "truncated": bool(lg.truncated),
+                       "trials": lg.trials()})
+        if lg.truncated:
+            notes.append(f"{lg.path}: {lg.recovered_note}; identified from what was recovered")
+        for w in lg.warnings:
+            notes.append(f"{lg.path}: {w}")
+    prog = opt.progress
+    # 2. signals per log
+    sigs = []
+    for lg in logs:
+        sig = sg.from_log(lg, opt.filters)
+        if sig.note != "no lost or invalid cycles":
+            notes.append(f"{lg.path}: {sig.note}")
+        sigs.append(sig)
+    spans = {}
+    for i, (lg, sig) in enumerate(zip(logs, sigs)):
+        for sp in trial_spans(lg.events, float(lg.feedback.t[-1]), i):
+            spans.setdefault(sp.name, []).append(sp)
+    bp = base_parameters(arm, offsets=opt.offsets)
+    groups = column_groups(arm, opt.offsets)
+    fmask = friction_mask(bp, arm, opt.offsets)
+    # 3. sequential part
+    static = velocity = None
+    fs_ = np.full(n, np.nan)
+    fs_sd = np.full(n, np.nan)
+    if "static" in spans:
+        recs = []
+        for sp in spans["static"]:
+            recs += breakaways(logs[sp.log_index], sigs[sp.log_index], "static")
+        if recs:
+            static = StaticFrictionTest(n).fit(recs)
+            fs_, fs_sd = static.static_, static.static_std_
+            nb = sum(r.from_event for r in recs)
+            if nb < len(recs):
+                notes.append(f"static test: {len(recs) - nb} of {len(recs)} breakaways detected from the data "
+                             f"(no breakaway event in those ramps)")
+    fc_ = np.full(n, np.nan)
+    fc_sd = np.full(n, np.nan)
+    fv_ = np.full(n, np.nan)
+    fv_sd = np.full(n, np.nan)
+    if "velocity" in spans:
+        segs_all = []
+        for li in sorted({sp.log_index for sp in spans["velocity"]}):
+            segs = velocity_segments(logs[li], sigs[li], "velocity")
+            if segs:
+                segs_all.append((li, segs))
+        if segs_all:
+            li, segs = segs_all[0]
+            velocity = ConstantVelocityTest(n).fit(arm, sigs[li], segs,
+                                                   balance=static.gravity_ if static is not None else None)
+            fc_, fc_sd = velocity.coulomb_, velocity.coulomb_std_
+            fv_, fv_sd = velocity.viscous_, velocity.viscous_std_
+    if opt.method == "mixed":
+        missing = [k + 1 for k in range(n) if not (np.isfinite(fc_[k]) and np.isfinite(fv_[k]))]
+        if "velocity" not in spans:
+            raise IdentificationError(
+                f"{', '.join(map(str, paths))}: no 'velocity' trial (constant-velocity test, eq. 5) in the input; the "
+                f"mixed method needs it for B and f_c. Record it (js2-acquire --trial velocity) or use "
+                f"--method simultaneous")
+        if missing:
+            raise IdentificationError(
+                f"{', '.join(map(str, paths))}: the 'velocity' trial has no usable steady segment for axis/axes "
+                f"{missing}; the mixed method needs B and f_c of every axis (or use --method simultaneous)")
+    # 4. fitting data
+    fit_names = [t for t in opt.fit_trials if t in spans]
+    if not fit_names:
+        have = sorted(spans) or ["none"]
+        raise IdentificationError(
+            f"{', '.join(map(str, paths))}: no {' or '.join(repr(t) for t in opt.fit_trials)} trial for the inertial "
+            f"fit (trials present: {', '.join(have)}); pass --fit-trials with one that is there")
+    fitW, fitY, fitV = [], [], []
+    val_parts = []
+    for name in fit_names:
+        for sp in spans[name]:
+            sig = sigs[sp.log_index]
+            idx = _span_index(sig, sp.t0, sp.t1)
+            W, y, v = _regressor_rows(arm, bp, sig, idx, opt.offsets, _progress(prog, f"regressor {name}"))
+            fitW.append(W), fitY.append(y), fitV.append(v)
+    W = np.concatenate(fitW)
+    Y = np.concatenate(fitY)
+    V = np.concatenate(fitV)
+    # validation data
+    vnames = [t for t in opt.validation_trials if t in spans]
+    for name in vnames:
+        for sp in spans[name]:
+            sig = sigs[sp.log_index]
+            idx = _span_index(sig, sp.t0, sp.t1)
+            val_parts.append(_regressor_rows(arm, bp, sig, idx, opt.offsets) + (f"{logs[sp.log_index].path}:{name}",))
+    for vp in opt.validate_paths:
+        vlog = read_log(vp)
+        check_same_arm([logs[0], vlog])
+        vsig = sg.from_log(vlog, opt.filters)
+        vsp = trial_spans(vlog.events, float(vlog.feedback.t[-1]))
+        chosen = [s for s in vsp if s.name in opt.validation_trials + opt.fit_trials] or \
+            [type("S", (), {"t0": float(vlog.feedback.t[0]), "t1": float(vlog.feedback.t[-1]), "name": "all"})()]
+        inputs.append({"path": str(vlog.path), "sha256": vlog.sha256, "source": vlog.source,
+                       "truncated": bool(vlog.truncated), "trials": vlog.trials(), "role": "validation"})
+        for s in chosen:
+            idx = _span_index(vsig, s.t0, s.t1)
+            val_parts.append(_regressor_rows(arm, bp, vsig, idx, opt.offsets) + (f"{vlog.path}:{s.name}",))
+    if not val_parts:
+        k = int(round(len(W) * (1 - opt.holdout)))
+        if k < 10 or len(W) - k < 10:
+            raise IdentificationError(f"{paths[0]}: too few samples ({len(W)}) to hold out a validation part")
+        val_parts.append((W[k:], Y[k:], V[k:], f"last {opt.holdout:.0%} of the fit trial(s) (held out)"))
+        W, Y, V = W[:k], Y[:k], V[:k]
+        notes.append(f"no validation trial: the last {opt.holdout:.0%} of the fitting data was held out for validation")
+    if len(W) < 2 * bp.n:
+        raise IdentificationError(f"{paths[0]}: only {len(W)} usable samples in the fit trial(s)")
+    wts = _row_weights(V, opt.v_min_fraction)
+    cond = condition_number(W)
+    cond_raw = condition_number(W, normalise=False)
+    # 5. estimators
+    methods = {}
+    nfr = np.flatnonzero(~fmask)
+    fr = np.flatnonzero(fmask)
+    friction_seq = np.full(bp.n, np.nan)
+    for i in fr:
+        lead = bp.lead(i)
+        kind, k = lead.split("_")
+        k = int(k) - 1
+        friction_seq[i] = {"B": fv_, "fc": fc_}.get(kind, np.full(n, 0.0))[k]
+    run_mixed = np.all(np.isfinite(friction_seq[fr])) if len(fr) else True
+    if opt.method == "mixed" and not run_mixed:
+        raise IdentificationError(f"{paths[0]}: friction of some axes missing from the sequential tests")
+    todo = (["mixed"] if run_mixed and np.isfinite(fv_).all() else []) + ["simultaneous"]
+    for name in todo:
+        if name == "mixed":
+            free = nfr
+            # offsets (if any) are not measured by the sequential tests: keep them free
+            y = Y - np.einsum("smp,p->sm", W[:, :, fr], np.nan_to_num(friction_seq[fr]))
+            off_idx = [i for i in fr if bp.lead(i).startswith("off_")]
+            free = np.sort(np.concatenate([nfr, off_idx])).astype(int)
+            fixed_idx = np.array([i for i in fr if i not in off_idx], int)
+            y = Y - np.einsum("smp,p->sm", W[:, :, fixed_idx], friction_seq[fixed_idx])
+        else:
+            free = np.arange(bp.n)
+            fixed_idx = np.array([], int)
+            y = Y
+        H = W[:, :, free]
+        corr = sigs[0].fs / (2 * opt.filters.fc_acceleration_hz)
+        rls = RecursiveLeastSquares(n_iter=opt.n_iter, correlation_length=corr).fit(
+            H, y, wts, progress=_progress(prog, f"RLS {name}"))
+        ols = BatchLeastSquares("ols", corr).fit(H, y, wts)
+        wls = BatchLeastSquares("wls", corr).fit(H, y, wts)
+        beta = np.zeros(bp.n)
+        std = np.zeros(bp.n)
+        beta[free] = rls.coef_
+        std[free] = rls.std_
+        if len(fixed_idx):
+            beta[fixed_idx] = friction_seq[fixed_idx]
+            for i in fixed_idx:
+                kind, k = bp.lead(i).split("_")
+                std[i] = {"B": fv_sd, "fc": fc_sd}[kind][int(k) - 1]
+        hist = np.tile(beta, (len(rls.history_), 1))
+        hist[:, free] = rls.history_
+        methods[name] = MethodResult(name, free, beta, std, rls, ols, wls, hist, rls.history_iter_)
+    chosen = opt.method if opt.method in methods else "simultaneous"
+    if chosen != opt.method:
+        notes.append(f"method {opt.method} not possible on this input; {chosen} used")
+    # 6. physically consistent model
+    phys = None
+    if opt.physical:
+        mr = methods[chosen]
+        Hn = W.reshape(-1, bp.n) * np.sqrt(wts.reshape(-1, 1))
+        gram = Hn.T @ Hn / max(mr.rls.sigma2_, 1e-30)
+        p = len(bp.std_names)
+        fixed_std = np.full(p, np.nan)
+        # friction standard values = the chosen method's friction base parameters
+        for i in fr:
+            fixed_std[bp.base_index[i]] = mr.beta[i]
+        try:
+            phys = PhysicalConsistencyFit().fit(bp.E, mr.beta, gram, arm.nominal_inertial, n, groups["motor"],
+                                                fixed_std)
+        except np.linalg.LinAlgError as exc:
+            notes.append(f"physically consistent fit failed ({exc})")
+    # 7. validation
+    validation = validate(methods, chosen, val_parts, phys, bp)
+    fit_data = {"W": W, "Y": Y, "V": V, "weights": wts}
+    friction_out = (fs_, fs_sd, fc_, fc_sd, fv_, fv_sd)
+    if chosen == "simultaneous":
+        # friction as the simultaneous method identified it
+        for i in fr:
+            kind, k = bp.lead(i).split("_")
+            k = int(k) - 1
+            if kind == "B":
+                fv_[k], fv_sd[k] = methods[chosen].beta[i], methods[chosen].std[i]
+            elif kind == "fc":
+                fc_[k], fc_sd[k] = methods[chosen].beta[i], methods[chosen].std[i]
+        friction_out = (fs_, fs_sd, fc_, fc_sd, fv_, fv_sd)
+    return Identification(options=opt, arm=arm, bp=bp, logs=logs, inputs=inputs, notes=notes, static=static,
+                          velocity=velocity, friction_static=friction_out[0], friction_static_std=friction_out[1],
+                          friction_coulomb=friction_out[2], friction_coulomb_std=friction_out[3],
+                          friction_viscous=friction_out[4], friction_viscous_std=friction_out[5], methods=methods,
+                          chosen=chosen, condition_number=cond, condition_number_raw=cond_raw, n_fit_samples=len(W),
+                          validation=validation, physical=phys, fit_data=fit_data,
+                          val_data={"parts": val_parts})
+
+
+def rms_nrms(pred: np.ndarray, meas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-axis RMS of (pred - meas) and NRMS = RMS / (max - min of the measured torque)."""
+    r = np.sqrt(np.mean((pred - meas) ** 2, axis=0))
+    rng = np.ptp(meas, axis=0)
+    return r, r / np.where(rng > 0, rng, np.nan)
+
+
+def validate(methods, chosen, val_parts, phys, bp) -> dict:
+    Wv = np.concatenate([p[0] for p in val_parts])
+    Yv = np.concatenate([p[1] for p in val_parts])
+    out = {"data": [p[3] for p in val_parts], "samples": int(len(Wv))}
+    for name, mr in methods.items():
+        pred = Wv @ mr.beta
+        r, nr = rms_nrms(pred, Yv)
+        out[name] = {"rms": r, "nrms": nr, "pred": pred}
+        for est in ("ols", "wls"):
+            b = mr.beta.copy()
+            b[mr.free] = getattr(mr, est).coef_
+            r2, nr2 = rms_nrms(Wv @ b, Yv)
+            out[f"{name}_{est}"] = {"rms": r2, "nrms": nr2}
+    if phys is not None:
+        pred = Wv @ phys.beta_
+        r, nr = rms_nrms(pred, Yv)
+        out["physical"] = {"rms": r, "nrms": nr, "pred": pred}
+    out["measured"] = Yv
+    out["rms"] = out[chosen]["rms"]
+    out["nrms"] = out[chosen]["nrms"]
+    return out
+
+
+def predict_standard(ident: Identification, pi: np.ndarray, part: str = "validation") -> tuple[np.ndarray, np.ndarray]:
+    """Filtered torque predicted by a *standard* parameter vector (e.g. the simulator's truth) on the same samples and
+    through the same filters as the identified model (returns prediction, measurement). For tests and reports."""
+    beta = ident.bp.beta(pi)
+    if part == "validation":
+        Wv = np.concatenate([p[0] for p in ident.val_data["parts"]])
+        Yv = np.concatenate([p[1] for p in ident.val_data["parts"]])
+    else:
+        Wv, Yv = ident.fit_data["W"], ident.fit_data["Y"]
+    return Wv @ beta, Yv

@@ -1,0 +1,185 @@
+"""``report.html``: the evidence for the model, one self-contained file (figures inline as base64 PNG).
+
+Figures: the paper's Fig. 2 for every axis (constant-velocity test: torque minus gravity against speed, points and the
+eq. 5 line), Fig. 3 (RLS convergence of J_4z, B_4, f_c4 — or any parameters — under the mixed and the simultaneous
+method), measured vs predicted torque on the validation data, and the tables behind them.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import io
+from pathlib import Path
+
+import numpy as np
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _png(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    _plt().close(fig)
+    return base64.b64encode(buf.getvalue()).decode()
+
+
+def fig2(ident, axes=None):
+    """The paper's Fig. 2 for every axis with a constant-velocity test. Returns a matplotlib Figure or None."""
+    plt = _plt()
+    vt = ident.velocity
+    if vt is None or not vt.axes_:
+        return None
+    ms = sorted(vt.axes_) if axes is None else axes
+    cols = min(3, len(ms))
+    rows = int(np.ceil(len(ms) / cols))
+    fig, axs = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.3 * rows), squeeze=False)
+    for a, m in zip(axs.ravel(), ms):
+        ax = vt.axes_[m]
+        p = ax.points
+        a.errorbar(p[:, 0], p[:, 1], yerr=p[:, 2], fmt="o", ms=4, label="steady segments")
+        x = np.linspace(p[:, 0].min(), p[:, 0].max(), 200)
+        x = x[x != 0]
+        for sgn in (1, -1):
+            xs = x[np.sign(x) == sgn]
+            a.plot(xs, ax.viscous * xs + ax.coulomb * sgn, "r-", lw=1)
+        a.axhline(0, color="0.7", lw=0.5)
+        a.axvline(0, color="0.7", lw=0.5)
+        a.set_title(f"axis {m + 1}: B={ax.viscous:.3g}±{ax.viscous_std:.1g}, f_c={ax.coulomb:.3g}±{ax.coulomb_std:.1g}",
+                    fontsize=8)
+        a.set_xlabel("motor speed θ̇_m (rad/s)")
+        a.set_ylabel("τ_m − K^T G(θ) (N m)")
+    for a in axs.ravel()[len(ms):]:
+        a.axis("off")
+    fig.suptitle("Fig. 2 — constant angular velocity test (eq. 5): slope B, intercept f_c")
+    fig.tight_layout()
+    return fig
+
+
+def fig3(ident, params=None):
+    """The paper's Fig. 3: RLS convergence of the chosen parameters under both methods."""
+    plt = _plt()
+    params = list(params or ident.options.fig3)
+    fig, axs = plt.subplots(len(params), 1, figsize=(7, 2.3 * len(params)), squeeze=False)
+    for a, name in zip(axs[:, 0], params):
+        i = ident.param_index(name)
+        for mname, style in (("mixed", "b-"), ("simultaneous", "r--")):
+            if mname not in ident.methods:
+                continue
+            mr = ident.methods[mname]
+            a.plot(mr.history_iter, mr.history[:, i], style, label=f"{mname}: {mr.beta[i]:.4g}")
+        a.set_ylabel(name, fontsize=9)
+        a.set_title(ident.bp.names[i][:110], fontsize=7)
+        a.legend(fontsize=7)
+    axs[-1, 0].set_xlabel("RLS iteration (samples)")
+    fig.suptitle("Fig. 3 — convergence under the mixed and the simultaneous method")
+    fig.tight_layout()
+    return fig
+
+
+def fig_validation(ident):
+    plt = _plt()
+    v = ident.validation
+    Y = v["measured"]
+    P = v[ident.chosen]["pred"]
+    n = Y.shape[1]
+    fig, axs = plt.subplots(n, 1, figsize=(9, 1.6 * n), sharex=True, squeeze=False)
+    t = np.arange(len(Y))
+    for k in range(n):
+        a = axs[k, 0]
+        a.plot(t, Y[:, k], "k-", lw=0.8, label="measured (filtered)")
+        a.plot(t, P[:, k], "r-", lw=0.8, label=f"predicted ({ident.chosen})")
+        a.set_ylabel(f"τ {k + 1} (N m)", fontsize=8)
+        a.text(0.01, 0.85, f"RMS {v['rms'][k]:.3g} N m, NRMS {100 * v['nrms'][k]:.2f} %", transform=a.transAxes,
+               fontsize=7)
+    axs[0, 0].legend(fontsize=7, loc="upper right")
+    axs[-1, 0].set_xlabel("validation sample")
+    fig.suptitle("Validation: torque predicted vs measured on data not used for fitting")
+    fig.tight_layout()
+    return fig
+
+
+def _table(headers, rows) -> str:
+    h = "".join(f"<th>{html.escape(str(x))}</th>" for x in headers)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
+    return f"<table><tr>{h}</tr>{body}</table>"
+
+
+def _f(x, p=4):
+    try:
+        return "—" if x is None or not np.isfinite(x) else f"{x:.{p}g}"
+    except TypeError:
+        return str(x)
+
+
+def write_report(ident, outdir: Path, verdict: dict | None = None) -> Path:
+    figs = []
+    f2 = fig2(ident)
+    if f2 is not None:
+        figs.append(("Fig. 2 — constant-velocity test per axis", _png(f2)))
+    figs.append(("Fig. 3 — RLS convergence, mixed vs simultaneous", _png(fig3(ident))))
+    figs.append(("Validation", _png(fig_validation(ident))))
+    arm = ident.arm
+    ja, ja_sd, alone = ident.motor_inertia()
+    fr_rows = [[j, _f(ident.friction_static[k]), _f(ident.friction_static_std[k], 2), _f(ident.friction_coulomb[k]),
+                _f(ident.friction_coulomb_std[k], 2), _f(ident.friction_viscous[k]), _f(ident.friction_viscous_std[k], 2),
+                _f(ja[k]), "yes" if alone[k] else "regrouped (value from the consistent fit)"]
+               for k, j in enumerate(arm.joints)]
+    bp_rows = []
+    for i in range(ident.bp.n):
+        row = [ident.bp.names[i]]
+        for m in ("mixed", "simultaneous"):
+            if m in ident.methods:
+                mr = ident.methods[m]
+                row += [_f(mr.beta[i]), _f(mr.std[i], 2)]
+        bp_rows.append(row)
+    bp_head = ["base parameter"] + sum([[f"{m}", "std"] for m in ("mixed", "simultaneous") if m in ident.methods], [])
+    v = ident.validation
+    val_rows = []
+    for k, j in enumerate(arm.joints):
+        row = [j]
+        for key in ("mixed", "simultaneous", "mixed_wls", "physical"):
+            if key in v:
+                row.append(_f(v[key]["rms"][k], 3))
+        row.append(f"{100 * v['nrms'][k]:.2f} %")
+        val_rows.append(row)
+    val_head = ["axis"] + [f"RMS {k} (N m)" for k in ("mixed", "simultaneous", "mixed_wls", "physical") if k in v] + \
+        [f"NRMS ({ident.chosen})"]
+    parts = [
+        "<!doctype html><html><head><meta charset='utf-8'><title>js2 identification report</title>",
+        "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;font-size:12px}"
+        "td,th{border:1px solid #ccc;padding:2px 6px}h2{margin-top:28px}.pass{color:green}.fail{color:red}</style>",
+        "</head><body>",
+        f"<h1>js2 identification — {html.escape(ident.logs[0].robot)}</h1>",
+        f"<p>Method: <b>{ident.chosen}</b>. Condition number of the base regressor (columns normalised): "
+        f"{ident.condition_number:.4g} (unscaled {ident.condition_number_raw:.3g}); {ident.bp.n} base parameters; "
+        f"{ident.n_fit_samples} fitting samples, RLS over {ident.model.rls.n_iter_} iterations.</p>",
+    ]
+    if verdict is not None:
+        cls = "pass" if verdict["pass"] else "fail"
+        parts.append(f"<p>Verdict: <b class='{cls}'>{'PASS' if verdict['pass'] else 'FAIL'}</b></p>")
+        parts.append(_table(["check", "value", "threshold", "pass"],
+                            [[c["check"], _f(c["value"]) if not isinstance(c["value"], bool) else c["value"],
+                              c["threshold"], c["pass"]] for c in verdict["checks"]]))
+    parts.append("<h2>Inputs</h2>" + _table(["log", "sha256", "source", "truncated", "trials"],
+                                            [[i["path"], i["sha256"][:16] + "…", i["source"], i["truncated"],
+                                              ", ".join(i["trials"])] for i in ident.inputs]))
+    if ident.notes:
+        parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in ident.notes) + "</ul>")
+    parts.append("<h2>Drive parameters (motor side)</h2>" + _table(
+        ["axis", "f_s (N m)", "std", "f_c (N m)", "std", "B (N m s/rad)", "std", "J_a (kg m²)", "J_a separately"],
+        fr_rows))
+    parts.append("<h2>Validation</h2>" + _table(val_head, val_rows))
+    for title, b64 in figs:
+        parts.append(f"<h2>{html.escape(title)}</h2><img src='data:image/png;base64,{b64}'/>")
+    parts.append("<h2>Base parameters</h2>" + _table(bp_head, bp_rows))
+    parts.append("</body></html>")
+    p = outdir / "report.html"
+    p.write_text("\n".join(parts))
+    return p

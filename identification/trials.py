@@ -1,0 +1,117 @@
+"""Trial structure of a js2 log (``/js2/event``): trial spans, segments, breakaways -> sample indices of Signals."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .sequential import Breakaway, VelocitySegment
+
+
+@dataclass
+class TrialSpan:
+    name: str
+    t0: float
+    t1: float
+    log_index: int
+
+
+def trial_spans(events: list[dict], t_end: float, log_index: int = 0) -> list[TrialSpan]:
+    """(trial, start, end) from trial_start/trial_end events; an unclosed trial ends at the end of the log."""
+    out, open_ = [], {}
+    for e in events:
+        if e["kind"] == "trial_start":
+            open_[e["trial"]] = e["t"]
+        elif e["kind"] == "trial_end" and e["trial"] in open_:
+            out.append(TrialSpan(e["trial"], open_.pop(e["trial"]), e["t"], log_index))
+    for name, t0 in open_.items():
+        out.append(TrialSpan(name, t0, t_end, log_index))
+    return sorted(out, key=lambda s: s.t0)
+
+
+def segments(events: list[dict], trial: str, t_end: float) -> list[tuple[dict, float]]:
+    """(segment_start event, end time) of one trial."""
+    out, open_ = [], None
+    for e in events:
+        if e.get("trial") != trial:
+            continue
+        if e["kind"] == "segment_start":
+            if open_ is not None:
+                out.append((open_, e["t"]))
+            open_ = e
+        elif e["kind"] == "segment_end" and open_ is not None:
+            out.append((open_, e["t"]))
+            open_ = None
+    if open_ is not None:
+        out.append((open_, t_end))
+    return out
+
+
+def _pose_key(pose) -> tuple:
+    return tuple(np.round(np.asarray(pose, float), 3).tolist()) if pose is not None else ()
+
+
+def breakaways(log, sig, trial: str = "static", move_counts: float = 3.0) -> list[Breakaway]:
+    """Breakaway torques of the static test: the ``breakaway`` event in each ramp segment, or, when a segment has
+    none, detected from the data: the first cycle whose encoder angle left the start by more than ``move_counts``
+    counts (the torque is the command of that cycle if the log has commands, else the measured torque)."""
+    t_end = float(log.feedback.t[-1])
+    evs = log.events
+    out = []
+    fb = log.feedback
+    cpr = np.asarray(log.drives.encoder_counts_per_rev, float)
+    for seg, t1 in segments(evs, trial, t_end):
+        m = seg.get("joint")
+        d = seg.get("direction")
+        if m is None or d is None:
+            continue
+        t0 = seg["t"]
+        bk = [e for e in evs if e["kind"] == "breakaway" and e.get("trial") == trial and t0 <= e["t"] <= t1
+              and e.get("joint", m) == m]
+        pose = _pose_key(seg.get("pose"))
+        if bk:
+            out.append(Breakaway(int(m), int(np.sign(d)), float(bk[0]["value"]), pose, float(bk[0]["t"]), True))
+            continue
+        sel = np.flatnonzero((fb.t >= t0) & (fb.t <= t1) & fb.valid[:, m])
+        if len(sel) < 3:
+            continue
+        q = fb.motor_position[sel, m]
+        thr = move_counts * (2 * np.pi / cpr[m]) if cpr[m] > 0 else 1e-3
+        moved = np.flatnonzero(np.abs(q - q[0]) > thr)
+        if len(moved) == 0:
+            continue
+        k = sel[moved[0]]
+        tau = fb.torque[k, m]
+        if log.command is not None:
+            j = np.searchsorted(log.command.cycle, fb.cycle[k])
+            if j < len(log.command.cycle) and log.command.cycle[j] == fb.cycle[k]:
+                tau = log.command.target_torque[j, m]
+        out.append(Breakaway(int(m), int(np.sign(d)), float(tau), pose, float(fb.t[k]), False))
+    return out
+
+
+def velocity_segments(log, sig, trial: str = "velocity", settle_fraction: float = 0.1,
+                      speed_tolerance: float = 0.15) -> list[VelocitySegment]:
+    """Steady parts of the constant-velocity segments: the middle of each marked segment (``settle_fraction`` cut at
+    both ends) where the filtered motor speed is within ``speed_tolerance`` (relative) of the segment's median speed."""
+    t_end = float(log.feedback.t[-1])
+    out = []
+    for seg, t1 in segments(log.events, trial, t_end):
+        m = seg.get("joint")
+        if m is None:
+            continue
+        t0 = seg["t"]
+        dt = t1 - t0
+        sel = np.flatnonzero(sig.mask_between(t0 + settle_fraction * dt, t1 - settle_fraction * dt))
+        if len(sel) < 5:
+            continue
+        w = sig.dq_motor[sel, m]
+        med = np.median(w)
+        if med == 0:
+            continue
+        sel = sel[np.abs(w - med) <= speed_tolerance * abs(med)]
+        if len(sel) < 5:
+            continue
+        d = int(np.sign(seg.get("direction", np.sign(med))))
+        out.append(VelocitySegment(int(m), d, float(seg.get("speed", abs(med))), sel))
+    return out
