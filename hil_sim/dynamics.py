@@ -48,7 +48,10 @@ class ArmDynamics:
     order to it (``q_pin = P q_joint``), folded into ``K`` so the hot loop pays nothing for it.
     """
 
-    def __init__(self, urdf_text: str, drives, motor_inertia, elastic_joints=(), payloads=(), source=None):
+    def __init__(self, urdf_text: str, drives, motor_inertia, elastic_joints=(), payloads=(), source=None,
+                 effects_source=None):
+        """``payloads``: ``(index in the effects list, payload_change Effect)`` pairs; errors in them name
+        ``effects_source`` (the sim_truth file) and ``effects[index].mass``."""
         model = build_model(urdf_text, source)
         n = drives.n
         names = list(drives.joints)
@@ -62,14 +65,14 @@ class ArmDynamics:
             P[model.joints[jid].idx_q, i] = 1.0
         if model.nq != n:
             raise ConfigError(source, "joint", f"URDF has {model.nq} dof, drives.yaml {n} drives")
-        for e in payloads:
+        for index, e in payloads:
             for j in e.joints:
                 jid = model.getJointId(names[j])
                 add = pin.Inertia(float(e["mass"]), np.asarray(e["com"], dtype=float),
                                   np.diag(np.asarray(e["inertia"], dtype=float)))
                 new = model.inertias[jid] + add
                 if not new.mass > 0:
-                    raise ConfigError(source, "payload_change.mass",
+                    raise ConfigError(effects_source, f"effects[{index}].mass",
                                       f"link of joint {names[j]} would have mass {new.mass:.4g} kg (must stay > 0)")
                 model.inertias[jid] = new
         self.model = model

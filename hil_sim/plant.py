@@ -61,8 +61,10 @@ class Plant:
             truth = load_truth(robot)
         elif not isinstance(truth, SimTruth):
             truth = load_truth(truth, n)
+        effects_source = truth.source
         if effects is not None:
-            effects = parse_effects(effects, n, source="Plant(effects=...)", joints=list(drives.joints))
+            effects_source = "Plant(effects=...)"
+            effects = parse_effects(effects, n, source=effects_source, joints=list(drives.joints))
             truth = truth.replace(effects=tuple(effects))
         if truth.n != n:
             raise ConfigError(truth.source, "motor_inertia", f"has {truth.n} drives, drives.yaml {n}")
@@ -91,7 +93,8 @@ class Plant:
         self.spring_half = np.array([elastic[j]["width"] / 2 for j in self.elastic_joints], dtype=float)
 
         self.dyn = ArmDynamics(robot.urdf_text, drives, truth.motor_inertia, self.elastic_joints,
-                               [e for e in effects if e.kind == "payload_change"], source=robot.urdf_path)
+                               [(i, e) for i, e in enumerate(effects) if e.kind == "payload_change"],
+                               source=robot.urdf_path, effects_source=effects_source)
         self.friction = Friction(truth.viscous, truth.coulomb, truth.static, effects)
 
         cog = [e for e in effects if e.kind == "cogging"]

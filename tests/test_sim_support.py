@@ -120,7 +120,7 @@ def breakaway(plant, axis, hold, direction, rate=0.01, dt=0.002, t_max=20.0, sta
 
 
 def constant_speed(plant, ref, axis, speed, q0=None, settle=0.3, measure=0.25, dt=0.002, bandwidth=100.0,
-                   hold_gravity=True, record=None):
+                   hold_gravity=True, record=None, ramp=0.0):
     """Eq. 5 constant angular velocity test: a velocity PI loop on motor ``axis`` (gravity feed-forward from the
     reference model, gains scaled to the axis' inertia), the other axes held by stiction against their gravity torque. Returns (mean motor speed
     from the encoder, mean measured torque minus gravity) over the measuring window."""
@@ -135,7 +135,8 @@ def constant_speed(plant, ref, axis, speed, q0=None, settle=0.3, measure=0.25, d
     for k in range(int((settle + measure) / dt)):
         q_joint = plant.q_joint
         g = ref.gravity_motor(q_joint) if hold_gravity else np.zeros(n)
-        err = speed - plant.dq_motor[axis]
+        ref_speed = speed * min(1.0, (k + 1) * dt / ramp) if ramp > 0 else speed
+        err = ref_speed - plant.dq_motor[axis]
         integ += ki * err * dt
         tau = g.copy()
         tau[axis] = g[axis] + kp * err + integ + np.sign(speed) * ref.fc[axis]
