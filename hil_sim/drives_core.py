@@ -26,9 +26,7 @@ EMCY_OVERCURRENT = 0x2310
 EMCY_HEARTBEAT = 0x8130
 EMCY_POSITION_LIMIT = 0x8612
 EMCY_GENERIC = 0x1000
-EMCY_NAMES = {0x2310: "continuous over-current", 0x8130: "life guard / heartbeat error",
-              0x8612: "software position limit exceeded", 0x1000: "generic error", 0x0000: "error reset",
-              0x3210: "DC link over-voltage", 0x4310: "drive over-temperature", 0x8611: "following error"}
+from js2io.cia402 import EMCY_NAMES  # noqa: E402,F401 - re-exported
 
 FAULT_KINDS = ("dead_node", "lost_frames", "drive_fault", "bus_error", "heartbeat_loss")
 

@@ -74,3 +74,9 @@ def next_controlword(state: str, target: str, last_cw: int) -> int:
     if state == QUICK_STOP:
         return CW_DISABLE_VOLTAGE
     return CW_SHUTDOWN
+
+
+# EMCY error codes (CiA 301 / 402) that the drives and the simulator use.
+EMCY_NAMES = {0x0000: "error reset / no error", 0x1000: "generic error", 0x2310: "continuous over-current",
+              0x3210: "DC link over-voltage", 0x4310: "drive over-temperature", 0x8130: "life guard / heartbeat error",
+              0x8611: "following error", 0x8612: "software position limit exceeded"}

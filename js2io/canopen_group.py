@@ -1,0 +1,307 @@
+"""CanopenDriveGroup: n CiA 402 drives on a python-can bus through the `canopen` stack.
+
+canopen does NMT, SDO configuration, EMCY decoding and receives heartbeats; the cyclic path bypasses its per-PDO
+machinery: RPDOs are packed with `struct` and sent as raw frames, TPDOs are raw subscriptions unpacked with `struct`
+(canopen's PdoMap/Variable layers cost more than the whole cycle budget at 500 Hz; see docs/acquisition.md).
+
+PDO layout (written by SDO at every start, never assumed):
+  RPDO1 0x200+id, sync (type 1): 0x6040 controlword U16, 0x6071 target torque I16 (per-mille of 0x6076)
+  RPDO2 0x300+id, sync:          0x60FF target velocity I32 (increments/s; CSV only)
+  TPDO1 0x180+id, every SYNC:    0x6041 statusword U16, 0x6064 position actual I32, 0x6078 current actual I16
+Heartbeats both ways: the drives produce every heartbeat_ms (0x1017) and consume the master's (0x1016, 3x);
+the master watches theirs (canopen has no consumer timeout, so this class does it).
+"""
+from __future__ import annotations
+
+import logging
+import struct
+import threading
+import time
+
+import can
+import canopen
+import numpy as np
+
+from js2spec.errors import ConfigError, Js2Error
+
+from . import cia402
+from .group import DriveEvent, DriveGroup, RawFeedback, motor_position_limits_counts
+
+log = logging.getLogger(__name__)
+
+TPDO1 = struct.Struct("<HiH")    # statusword, position, current (parsed as signed below)
+TPDO1S = struct.Struct("<Hih")
+RPDO1 = struct.Struct("<Hh")
+RPDO2 = struct.Struct("<i")
+SYNC_ID = 0x80
+
+
+class BusError(Js2Error):
+    pass
+
+
+class _ErrorFrameListener(can.Listener):
+    def __init__(self, group):
+        self.group = group
+
+    def on_message_received(self, msg):
+        if msg.is_error_frame:
+            self.group.push_event(DriveEvent("fault", f"bus error: error frame received (id 0x{msg.arbitration_id:X})"))
+
+    def stop(self):
+        pass
+
+
+class CanopenDriveGroup(DriveGroup):
+    def __init__(self, drives, network: canopen.Network, eds_path, *, cycle_hz: float | None = None,
+                 realtime: bool = False, lockstep_timeout_s: float = 0.25, master_node_id: int = 0x7F,
+                 sdo_timeout_s: float = 0.5):
+        super().__init__(drives, cycle_hz)
+        self.network = network
+        self.eds_path = str(eds_path)
+        self.node_ids = [int(x) for x in (drives.node_ids or range(1, self.n + 1))]
+        self.realtime = realtime
+        self.lockstep_timeout_s = lockstep_timeout_s
+        self.master_node_id = master_node_id
+        self.sdo_timeout_s = sdo_timeout_s
+        self.hb_ms = float(drives.heartbeat_ms or 100.0)
+        self.nodes: list[canopen.RemoteNode] = []
+        self._index = {0x180 + nid: i for i, nid in enumerate(self.node_ids)}
+        self._status = np.zeros(self.n, dtype=np.int64)
+        self._counts = np.zeros(self.n, dtype=np.int64)
+        self._cur = np.zeros(self.n, dtype=np.int64)
+        self._got = np.zeros(self.n, dtype=bool)
+        self._ngot = 0
+        self._done = threading.Event()
+        self._hb_time = [None] * self.n
+        self._hb_state = [None] * self.n
+        self._hb_reported = [False] * self.n
+        self._hb_task = None
+        self._t0 = None
+        self._next = None
+        self.missed = 0                 # real time: SYNCs sent later than one period after their deadline
+        self.sync_times: list[float] = []
+        self.keep_sync_times = False
+        self._opened = False
+        self.source_detail = "hardware"
+        self._rpdo_msgs = [can.Message(arbitration_id=0x200 + nid, data=bytes(4), is_extended_id=False)
+                           for nid in self.node_ids]
+        self._sync_msg = can.Message(arbitration_id=SYNC_ID, data=b"", is_extended_id=False)
+
+    # ------------------------------------------------------------------ set-up
+    def _sdo_write(self, i, index, sub, value):
+        node = self.nodes[i]
+        try:
+            if sub is None:
+                node.sdo[index].raw = value
+            else:
+                node.sdo[index][sub].raw = value
+        except canopen.SdoAbortedError as e:
+            raise Js2Error(f"node {self.node_ids[i]}: SDO write 0x{index:04X}{'' if sub is None else f':{sub}'} = "
+                           f"{value} refused ({e}); check that the drive supports this object") from None
+        except canopen.SdoCommunicationError as e:
+            raise Js2Error(f"node {self.node_ids[i]}: no SDO answer writing 0x{index:04X} ({e}); check that the drive "
+                           f"is powered, its node-id and the bitrate") from None
+
+    def _sdo_read(self, i, index, sub=None):
+        node = self.nodes[i]
+        try:
+            return node.sdo[index].raw if sub is None else node.sdo[index][sub].raw
+        except canopen.SdoAbortedError as e:
+            raise Js2Error(f"node {self.node_ids[i]}: SDO read 0x{index:04X} refused ({e})") from None
+        except canopen.SdoCommunicationError as e:
+            raise Js2Error(f"node {self.node_ids[i]}: no SDO answer reading 0x{index:04X} ({e}); check that the drive "
+                           f"is powered, its node-id ({self.node_ids[i]}), the bus and the bitrate") from None
+
+    def _map(self, i, comm, mapping, cob, entries, trans_type=1, enable=True):
+        self._sdo_write(i, comm, 1, cob | 0x80000000)          # disable while mapping
+        self._sdo_write(i, mapping, 0, 0)
+        for k, e in enumerate(entries, start=1):
+            self._sdo_write(i, mapping, k, e)
+        self._sdo_write(i, mapping, 0, len(entries))
+        self._sdo_write(i, comm, 2, trans_type)
+        self._sdo_write(i, comm, 1, cob if enable else cob | 0x80000000)
+
+    def open(self) -> None:
+        net = self.network
+        if net.bus is None:
+            raise Js2Error("CANopen network has no bus: connect it first")
+        for nid in self.node_ids:
+            node = canopen.RemoteNode(nid, self.eds_path)
+            node.sdo.RESPONSE_TIMEOUT = self.sdo_timeout_s
+            net.add_node(node)
+            self.nodes.append(node)
+        if net.notifier is not None:
+            net.notifier.add_listener(_ErrorFrameListener(self))
+        net.send_message(0x000, bytes([0x80, 0]))      # NMT: all to pre-operational (PDOs off)
+        time.sleep(0.02)
+        lo, hi = motor_position_limits_counts(self.drives, self.scaling)
+        period_ms = 1000.0 / self.cycle_hz
+        names = []
+        for i, nid in enumerate(self.node_ids):
+            names.append(str(self._sdo_read(i, 0x1008)))
+            modes = int(self._sdo_read(i, 0x6502))
+            if not modes & (1 << 9):
+                raise Js2Error(f"node {nid}: cyclic synchronous torque (mode 10) not supported (0x6502 = 0x{modes:08X})")
+            rt = int(self._sdo_read(i, 0x6076))
+            rc = int(self._sdo_read(i, 0x6075))
+            want_t, want_c = self.scaling.rated_torque_mnm()[i], self.scaling.rated_current_ma()[i]
+            if abs(rt - want_t) > 0.005 * want_t or abs(rc - want_c) > 0.005 * want_c:
+                raise ConfigError(self.drives.source, "rated_torque",
+                                  f"node {nid} reports rated torque {rt} mN*m / rated current {rc} mA (0x6076/0x6075) "
+                                  f"but drives.yaml says {want_t} mN*m / {want_c} mA; fix drives.yaml")
+            self._sdo_write(i, 0x6040, None, 0)                              # disable voltage
+            self._sdo_write(i, 0x6072, None, int(self.limit_permille[i]))    # max torque: the hard limit
+            if int(self._sdo_read(i, 0x6072)) != int(self.limit_permille[i]):
+                raise Js2Error(f"node {nid}: max torque 0x6072 did not take the value {self.limit_permille[i]}")
+            self._sdo_write(i, 0x607D, 1, int(lo[i]))
+            self._sdo_write(i, 0x607D, 2, int(hi[i]))
+            self._sdo_write(i, 0x605A, None, 6)                              # quick stop: ramp, stay (hold)
+            if period_ms == int(period_ms):
+                self._sdo_write(i, 0x60C2, 1, int(period_ms))
+                self._sdo_write(i, 0x60C2, 2, -3)
+            self._map(i, 0x1400, 0x1600, 0x200 + nid, [0x60400010, 0x60710010])
+            self._map(i, 0x1401, 0x1601, 0x300 + nid, [0x60FF0020])
+            self._map(i, 0x1800, 0x1A00, 0x180 + nid, [0x60410010, 0x60640020, 0x60780010])
+            self._sdo_write(i, 0x1801, 1, 0x80000280 + nid)                  # TPDO2 off
+            self._sdo_write(i, 0x6060, None, int(self.modes[i]))
+            self._sdo_write(i, 0x1016, 1, (self.master_node_id << 16) | int(3 * self.hb_ms))
+            self._sdo_write(i, 0x1017, None, int(self.hb_ms))
+            node = self.nodes[i]
+            node.nmt.add_heartbeat_callback(lambda state, i=i: self._on_heartbeat(i, state))
+            node.emcy.add_callback(lambda err, i=i: self._on_emcy(i, err))
+            net.subscribe(0x180 + nid, self._on_tpdo)
+        self.source_detail = "hil_sim:canopen" if all(n.startswith("js2-hil_sim") for n in names) else "hardware"
+        self.source = "hil_sim" if self.source_detail.startswith("hil_sim") else "hardware"
+        self._hb_task = net.send_periodic(0x700 + self.master_node_id, bytes([5]), self.hb_ms / 1000.0)
+        net.send_message(0x000, bytes([0x01, 0]))      # NMT: start all
+        for i in range(self.n):                        # modes verified on 0x6061
+            m = int(self._sdo_read(i, 0x6061))
+            if m != int(self.modes[i]):
+                raise Js2Error(f"node {self.node_ids[i]}: mode display 0x6061 = {m}, expected {self.modes[i]}")
+        deadline = time.monotonic() + 3 * self.hb_ms / 1000.0 + 0.5
+        while time.monotonic() < deadline and any(s != 5 for s in self._hb_state):
+            time.sleep(0.01)
+        missing = [self.node_ids[i] for i, s in enumerate(self._hb_state) if s != 5]
+        if missing:
+            raise Js2Error(f"nodes {missing} sent no heartbeat in OPERATIONAL state after NMT start "
+                           f"(within {3 * self.hb_ms:g} ms); check them")
+        self._opened = True
+
+    # ------------------------------------------------------------------ callbacks (notifier thread)
+    def _on_tpdo(self, can_id, data, timestamp):
+        i = self._index[can_id]
+        if len(data) < 8:
+            return
+        self._status[i], self._counts[i], self._cur[i] = TPDO1S.unpack_from(data)
+        if not self._got[i]:
+            self._got[i] = True
+            self._ngot += 1
+            if self._ngot == self.n:
+                self._done.set()
+
+    def _on_heartbeat(self, i, state):
+        self._hb_time[i] = time.monotonic()
+        prev = self._hb_state[i]
+        self._hb_state[i] = state
+        if self._opened and state != 5 and prev == 5:
+            self.push_event(DriveEvent("fault", f"node {self.node_ids[i]} (drive {i}) left OPERATIONAL "
+                                       f"(heartbeat state {state})", joint=i))
+
+    def _on_emcy(self, i, err):
+        code = int(err.code)
+        desc = err.get_desc() or _emcy_name(code)
+        fatal = code != 0
+        self.push_event(DriveEvent("emcy", f"EMCY node {self.node_ids[i]} (drive {i}): 0x{code:04X} {desc} "
+                                   f"(error register 0x{err.register:02X})", joint=i, fatal=fatal, code=code))
+
+    # ------------------------------------------------------------------ the cycle
+    def _send(self, msg):
+        with self.network.send_lock:
+            self.network.bus.send(msg)
+
+    def _transmit(self, controlword, torque_permille, velocity_counts) -> None:
+        for i in range(self.n):
+            m = self._rpdo_msgs[i]
+            m.data = bytearray(RPDO1.pack(int(controlword[i]), int(torque_permille[i])))
+            self._send(m)
+        if velocity_counts is not None:
+            for i, nid in enumerate(self.node_ids):
+                self._send(can.Message(arbitration_id=0x300 + nid, data=RPDO2.pack(int(velocity_counts[i])),
+                                       is_extended_id=False))
+
+    def _sync(self) -> RawFeedback:
+        self.network.check()          # re-raise what killed the receive thread (bus errors)
+        self._got[:] = False
+        self._ngot = 0
+        self._done.clear()
+        now = time.perf_counter()
+        if self.realtime:
+            if self._next is None:
+                self._t0 = self._next = now
+            else:
+                self._next += self.dt
+                delay = self._next - now
+                if delay > 0:
+                    _sleep_until(self._next)
+                elif delay < -self.dt:
+                    self.missed += 1
+            t_sync = time.perf_counter()
+            self._send(self._sync_msg)
+            if self.keep_sync_times:
+                self.sync_times.append(t_sync)
+            wait = self._next + self.dt * 0.9 - time.perf_counter()
+            self._done.wait(max(wait, 0.0))
+            t = t_sync - self._t0
+        else:
+            self._send(self._sync_msg)
+            self._done.wait(self.lockstep_timeout_s)
+            t = None
+        self._check_heartbeats()
+        return RawFeedback(self._status.copy(), self._counts.copy(), self._cur.copy(), self._got.copy(), t)
+
+    def _check_heartbeats(self) -> None:
+        now = time.monotonic()
+        lim = 3 * self.hb_ms / 1000.0
+        for i in range(self.n):
+            t = self._hb_time[i]
+            if t is not None and now - t > lim and not self._hb_reported[i]:
+                self._hb_reported[i] = True
+                self.push_event(DriveEvent("fault", f"node {self.node_ids[i]} (drive {i}): heartbeat lost "
+                                           f"(none for {1000 * (now - t):.0f} ms, limit {1000 * lim:.0f} ms)", joint=i))
+
+    def _set_modes(self, modes) -> None:
+        for i in range(self.n):
+            self._sdo_write(i, 0x6060, None, int(modes[i]))
+            m = int(self._sdo_read(i, 0x6061))
+            if m != int(modes[i]):
+                raise Js2Error(f"node {self.node_ids[i]}: mode {modes[i]} not taken (0x6061 = {m})")
+
+    def stop_heartbeat(self) -> None:
+        """Stop the master heartbeat producer (tests: the drives must quick-stop)."""
+        if self._hb_task is not None:
+            self._hb_task.stop()
+            self._hb_task = None
+
+    def close(self) -> None:
+        try:
+            self.stop_heartbeat()
+            if self.network.bus is not None and self._opened:
+                self.network.send_message(0x000, bytes([0x80, 0]))   # pre-operational: PDOs off
+        except Exception:
+            pass
+        self._opened = False
+
+
+def _emcy_name(code: int) -> str:
+    return cia402.EMCY_NAMES.get(code, "error")
+
+
+def _sleep_until(t_target: float) -> None:
+    """Sleep to just before the deadline, then spin the last ~0.3 ms (time.sleep overshoots ~0.1 ms)."""
+    while True:
+        d = t_target - time.perf_counter()
+        if d <= 0:
+            return
+        if d > 0.0004:
+            time.sleep(d - 0.0003)

@@ -1,0 +1,139 @@
+"""js2-acquire: run identification trials on an arm through its CANopen drives and write a js2 log.
+
+  js2-acquire --trial all -o run.mcap                        # in-process simulator on python-can's virtual bus
+  js2-acquire --trial static -o s.mcap -i socketcan -c can0 -b 1000000 --realtime      # a real arm (SocketCAN)
+  js2-acquire --trial velocity -o v.mcap -i socketcand -c js2 --bus-arg port=PORT     # js2-sim in another process
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import time
+
+from js2spec.errors import Js2Error
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="js2-acquire", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n", 2)[2])
+    p.add_argument("--trial", default="all",
+                   help="static, velocity, acceleration, excitation, validation, all, or a comma list (default all)")
+    p.add_argument("-o", "--output", required=True, help="the js2 log to write (.mcap)")
+    p.add_argument("--robot", default="js2", help="robot name under configs/ or a robot folder (default js2)")
+    p.add_argument("--config", help="trials file (default: the robot's trials.yaml)")
+    p.add_argument("--seed", type=int, default=0, help="seed for trajectories and the simulator's noise")
+    p.add_argument("--cycle-hz", type=float, help="SYNC rate (default: drives.yaml can.cycle_hz)")
+    p.add_argument("--realtime", action="store_true",
+                   help="pace SYNC by the wall clock (needed for real drives); default: lock-step, SYNC as soon as "
+                        "all drives answered (simulators only)")
+    g = p.add_argument_group("CAN bus (as python-can's tools take it; none given = in-process simulator)")
+    g.add_argument("-i", "--interface", help="python-can interface: socketcan, socketcand, slcan, pcan, virtual, ...")
+    g.add_argument("-c", "--channel", help="channel, e.g. can0, /dev/ttyACM0")
+    g.add_argument("-b", "--bitrate", type=int, help="bit rate, e.g. 1000000")
+    g.add_argument("--bus-arg", action="append", default=[], metavar="KEY=VALUE",
+                   help="extra python-can Bus argument, e.g. --bus-arg port=29536 (repeatable)")
+    g.add_argument("--bus-config", action="store_true", help="open the bus from python-can's config file/environment")
+    s = p.add_argument_group("in-process simulator")
+    s.add_argument("--direct", action="store_true", help="step the simulator directly, without CAN (fastest)")
+    s.add_argument("--sim-fault", action="append", default=[], metavar="KIND[:DRIVE][@CYCLE][xCOUNT]",
+                   help="inject a fault: dead_node, lost_frames, drive_fault, bus_error, heartbeat_loss; "
+                        "e.g. drive_fault:2@3000 (repeatable)")
+    p.add_argument("--max-lost", type=int, default=10, help="consecutive lost TPDOs of one drive that abort (default 10)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return _run(args)
+    except Js2Error as e:
+        print(f"js2-acquire: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("js2-acquire: interrupted", file=sys.stderr)
+        return 130
+
+
+def _run(args) -> int:
+    from js2spec.robot import load_robot
+
+    from .bus import bus_kwargs, open_bus
+    from .session import Session, open_log
+    from .trials import TrialContext, expand_trial_names, load_trials_config, make_trials
+
+    robot = load_robot(args.robot)
+    cfg_path = args.config or robot.trials_path
+    if cfg_path is None:
+        from .trials import default_trials_path
+        cfg_path = default_trials_path()
+    cfg = load_trials_config(cfg_path)
+    names = expand_trial_names(args.trial)
+    use_bus = bool(args.interface or args.channel or args.bus_config or args.bus_arg)
+    if use_bus and (args.direct or args.sim_fault):
+        raise Js2Error("--direct and --sim-fault apply to the in-process simulator only; drop the bus options or them")
+    sim = None
+    bus = None
+    network = None
+    group = None
+    cycle_hz = args.cycle_hz or robot.drives.cycle_hz or 500.0
+    ctx = TrialContext(robot.drives, 1.0 / cycle_hz, cfg, seed=args.seed)
+    trials = make_trials(names, ctx)
+    try:
+        if args.direct:
+            from hil_sim.direct import DirectDriveGroup
+            group = DirectDriveGroup(robot, cycle_hz=cycle_hz, seed=args.seed, faults=args.sim_fault)
+            where = "in-process simulator, direct (no CAN)"
+        else:
+            import canopen
+
+            from .canopen_group import CanopenDriveGroup
+            if use_bus:
+                kw = {} if args.bus_config else bus_kwargs(args.interface, args.channel, args.bitrate, args.bus_arg)
+                bus = open_bus(kw)
+                where = f"CAN bus {bus.channel_info}"
+            else:
+                from hil_sim.drives import CanopenSimulator
+                ch = f"js2-{os.getpid()}-{time.monotonic_ns()}"
+                sim = CanopenSimulator(robot, bus_kwargs={"interface": "virtual", "channel": ch},
+                                       cycle_hz=cycle_hz, seed=args.seed, faults=args.sim_fault,
+                                       realtime=args.realtime).start()
+                bus = open_bus({"interface": "virtual", "channel": ch})
+                where = "in-process simulator on python-can's virtual bus"
+            network = canopen.Network(bus)
+            network.connect()
+            if robot.eds_path is None:
+                raise Js2Error(f"{robot.folder}: no drives.eds (the drives' object dictionary); add it")
+            group = CanopenDriveGroup(robot.drives, network, robot.eds_path, cycle_hz=cycle_hz,
+                                      realtime=args.realtime)
+        print(f"js2-acquire: {robot.name}, trials {', '.join(names)} -> {args.output} ({where}, "
+              f"{cycle_hz:g} Hz, {'real time' if args.realtime else 'lock-step'})", file=sys.stderr)
+        group.open()
+        writer = open_log(args.output, robot, group, cfg)
+        session = Session(group, writer, trials, progress=not args.no_progress, max_consecutive_lost=args.max_lost)
+
+        def on_signal(signum, frame):
+            session.stop_request = signal.Signals(signum).name
+
+        old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            res = session.run()
+        finally:
+            for s_, h in old.items():
+                signal.signal(s_, h)
+        print(res.text())
+        return 1 if res.aborted else 0
+    finally:
+        if group is not None:
+            group.close()
+        if network is not None:
+            try:
+                network.disconnect()
+            except Exception:
+                pass
+        elif bus is not None:
+            bus.shutdown()
+        if sim is not None:
+            sim.stop()
