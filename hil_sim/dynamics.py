@@ -77,6 +77,10 @@ class ArmDynamics:
                 model.inertias[jid] = new
         self.model = model
         self.data = model.createData()
+        # some pinocchio versions fill only the upper triangle of M: check once, symmetrise only if needed
+        probe = pin.crba(model, model.createData(), pin.randomConfiguration(model, -np.ones(model.nq),
+                                                                             np.ones(model.nq)))
+        self._crba_full = bool(np.array_equal(probe, probe.T))
         self.n = n
         self.perm = P
         self.joint_names = names
@@ -120,7 +124,8 @@ class ArmDynamics:
     def mass_matrix_z(self, q_pin: np.ndarray) -> np.ndarray:
         """``M_z = J^T M(q) J + diag(J_a, 0)``."""
         M = pin.crba(self.model, self.data, q_pin)
-        M = np.triu(M) + np.triu(M, 1).T
+        if not self._crba_full:
+            M = np.triu(M) + np.triu(M, 1).T
         return self.J_T @ M @ self.J + np.diag(self.Ja_z)
 
     def solve(self, z, zd, Q, stuck=None):
@@ -140,6 +145,31 @@ class ArmDynamics:
         if F.any():
             a[F] = np.linalg.solve(Mz[np.ix_(F, F)], rhs[F])
         lam[stuck] = rhs[S] - Mz[np.ix_(S, F)] @ a[F]
+        return a, lam
+
+    def solve_fast(self, z, zd, Q, stuck=None):
+        """As :meth:`solve` for the fast path (rigid, diagonal reflected armature): ABA for the free motion,
+        and for stuck axes the constraint through the inverse inertia (pinocchio ``computeMinverse``)::
+
+            a0 = M_z^-1 rhs,   M_z^-1[S,S] lam_S = a0[S],   a = a0 - M_z^-1[:,S] lam_S   (a[S] = 0)
+        """
+        q = self.Kp @ z + self.off_p
+        a = self.Kp_inv @ pin.aba(self.model_arm, self.data_arm, q, self.Kp @ zd, self.Kp_inv_T @ Q)
+        lam = np.zeros(self.n)
+        if stuck is None or not stuck.any():
+            return a, lam
+        Minv = self.Kp_inv @ pin.computeMinverse(self.model_arm, self.data_arm, q) @ self.Kp_inv_T
+        S = np.flatnonzero(stuck)
+        if len(S) == 1:
+            s = S[0]
+            lam_s = a[s] / Minv[s, s]
+            a = a - Minv[:, s] * lam_s
+            lam[s] = lam_s
+        else:
+            lam_S = np.linalg.solve(Minv[np.ix_(S, S)], a[S])
+            a = a - Minv[:, S] @ lam_S
+            lam[S] = lam_S
+        a[S] = 0.0
         return a, lam
 
     def inverse_dynamics(self, q_motor, dq_motor, ddq_motor) -> np.ndarray:

@@ -116,6 +116,10 @@ class Plant:
                         and self.friction.constant)
         self._active = self.friction.active.copy()
         self._any_active = bool(self._active.any())
+        self._all_stuck_rigid = self.dyn.ne == 0
+        self._lam = np.zeros(n)
+        self._Qm = np.zeros(self.dyn.nz)
+        self._viscous_j = self.dyn.Kp_inv_T * self.friction.viscous        # K^-T diag(B), motor velocity in
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -140,8 +144,10 @@ class Plant:
         self._t = 0.0
         self._sign = np.zeros(n)
         self._tau = np.zeros(n)
+        self._tau_key = self._tau.tobytes()
         self._a = None                 # cached acceleration at the current state (FSAL)
         self._stuck = None
+        self._rest_pending = True      # some axis with dry friction may be at rest: run the stick check
         self._temperature_rise = self.friction.thermal_initial.copy()
         self._load = np.zeros(n)
         self._refresh_levels()
@@ -156,6 +162,7 @@ class Plant:
         self._sign = np.sign(self._zd[:n]) * self._active
         self._a = None
         self._stuck = None
+        self._rest_pending = True
         self._refresh_levels()
 
     @property
@@ -214,12 +221,12 @@ class Plant:
 
         The plant's own acceleration function, for checks: no state is changed.
         """
-        saved = (self._z, self._zd, self._sign, self._a, self._stuck)
+        saved = (self._z, self._zd, self._sign, self._a, self._stuck, self._rest_pending)
         try:
             self.set_state(q_motor, dq_motor)
             return self._accel(self._z, self._zd, np.asarray(tau_motor, dtype=float), None)[: self.n].copy()
         finally:
-            self._z, self._zd, self._sign, self._a, self._stuck = saved
+            self._z, self._zd, self._sign, self._a, self._stuck, self._rest_pending = saved
             self._refresh_levels()
 
     def energy(self) -> float:
@@ -250,6 +257,9 @@ class Plant:
         self._scale = scale
         self._fc, self._fs = fr.levels(self._sign, scale, self._load if fr.has_load else None)
         self._coulomb_signed = self._sign * self._fc
+        self._tau_j = None             # K^-T (tau - f_c sgn), cached for the fast path
+        # crossing check: sign * velocity <= 0 on sliding axes; +inf pads axes without a sign (stuck, frictionless)
+        self._sign_pad = np.where(self._sign == 0.0, np.inf, 0.0)
 
     def _forces(self, z, zd, tau):
         """Generalized forces Q (nz): motor rows tau + cogging - friction (sliding law), spring rows."""
@@ -268,31 +278,45 @@ class Plant:
         return Q
 
     def _accel(self, z, zd, tau, stuck):
-        """z_dd at (z, zd) under motor torque ``tau`` with the current friction signs and stuck set."""
+        """z_dd at (z, zd) under motor torque ``tau`` with the current friction signs and stuck set.
+
+        Sets ``self._lam`` (friction holding the stuck axes) and ``self._Qm`` (the forces used)."""
         d = self.dyn
         if stuck is None and self._simple:
-            # eq. 1 as ABA with armature: (M + A) q_dd = K^-T (tau - B w - f_c sgn) - nle
-            tau_j = d.Kp_inv_T @ (tau - self._coulomb_signed - self.friction.viscous * zd)
-            a_j = pin.aba(d.model_arm, d.data_arm, d.Kp @ z + d.off_p, d.Kp @ zd, tau_j)
-            self._lam = None
-            return d.Kp_inv @ a_j
+            # eq. 1 as ABA with armature: (M + A) q_dd = K^-T (tau - f_c sgn) - K^-T B w - nle
+            if self._tau_j is None:
+                self._tau_j = d.Kp_inv_T @ (tau - self._coulomb_signed)
+            return d.Kp_inv @ pin.aba(d.model_arm, d.data_arm, d.Kp @ z + d.off_p, d.Kp @ zd,
+                                      self._tau_j - self._viscous_j @ zd)
         Q = self._forces(z, zd, tau)
-        if stuck is None and d.fast:
-            a_j = pin.aba(d.model_arm, d.data_arm, d.Kp @ z + d.off_p, d.Kp @ zd, d.Kp_inv_T @ Q)
-            self._lam = None
-            self._Qm = Q
-            return d.Kp_inv @ a_j
-        a, lam = d.solve(z, zd, Q, stuck)
-        self._lam = lam
         self._Qm = Q
+        if d.fast:
+            a, self._lam = d.solve_fast(z, zd, Q, stuck)
+        else:
+            a, self._lam = d.solve(z, zd, Q, stuck)
         return a
 
     def _stick_solve(self, z, zd, tau, candidates):
-        """Decide which resting axes stay stuck; return (acceleration, stuck set or None)."""
+        """Decide which resting axes stay stuck; return (acceleration at (z, zd), stuck set or None).
+
+        Solve with every candidate held (acceleration 0), which gives the friction ``lam`` each needs; release
+        those whose need exceeds f_s in the direction of ``lam`` (they slide that way with Coulomb friction) and
+        re-solve until consistent."""
         stuck = candidates.copy()
         fr = self.friction
+        d = self.dyn
+        n = self.n
         while True:
-            a, lam = self.dyn.solve(z, zd, self._forces(z, zd, tau), stuck)
+            if self._all_stuck_rigid and stuck.all():
+                # whole arm held (every velocity is 0): the holding friction is what gravity and the motors
+                # leave over, no dynamics solve needed
+                Q = self._forces(z, zd, tau)
+                self._Qm = Q
+                lam = Q - d.Kp.T @ d.gravity_link(d.Kp @ z + d.off_p)
+                a = np.zeros(n)
+            else:
+                a = self._accel(z, zd, tau, stuck)
+                lam = self._lam
             direction = np.sign(lam)
             _, fs = fr.levels(direction, self._scale, self._load if fr.has_load else None)
             release = stuck & (np.abs(lam) > fs)
@@ -301,40 +325,59 @@ class Plant:
             self._sign[release] = direction[release]
             stuck &= ~release
             self._refresh_levels()
+            if not stuck.any():
+                stuck = None
+                a = self._accel(z, zd, tau, None)
+                lam = np.zeros(n)
+                break
         self._lam = lam
-        return a, (stuck if stuck.any() else None)
+        return a, stuck
 
     def _substep(self, h, tau):
+        """One fixed step of the midpoint (leapfrog) scheme with one dynamics evaluation::
+
+            z_mid = z + h/2 v,   a = a(z_mid, v + h/2 a_prev),   v' = v + h a,   z' = z_mid + h/2 v'
+
+        with the stick/slip decision taken at the midpoint (stuck axes: a = 0, so they stay exactly put)."""
         n = self.n
         z, zd = self._z, self._zd
+        a_prev = self._a
+        z_mid = z + (0.5 * h) * zd
+        zd_mid = zd if a_prev is None else zd + (0.5 * h) * a_prev
         stuck = None
-        if self._any_active:
+        if self._rest_pending:
             candidates = self._active & (zd[:n] == 0.0)
             if candidates.any():
-                self._a, stuck = self._stick_solve(z, zd, tau, candidates)
-        a = self._a
-        if a is None:
-            a = self._accel(z, zd, tau, stuck)
-        zd_half = zd + (0.5 * h) * a
-        z_new = z + h * zd_half
-        a_new = self._accel(z_new, zd + h * a, tau, stuck)
-        zd_new = zd_half + (0.5 * h) * a_new
+                a, stuck = self._stick_solve(z_mid, zd_mid, tau, candidates)
+            else:
+                a = self._accel(z_mid, zd_mid, tau, None)
+            self._rest_pending = stuck is not None
+        else:
+            a = self._accel(z_mid, zd_mid, tau, None)
+        self._stuck = stuck
         if self.friction.has_load:
             Qm = self._Qm[:n] if stuck is None else self._Qm[:n] - self._lam
-            self._load = Qm - self.dyn.motor_inertia * a_new[:n]
-        self._stuck = stuck
+            self._load = Qm - self.dyn.motor_inertia * a[:n]
+        if stuck is not None and self._all_stuck_rigid and stuck.all():
+            self._a = a                      # zeros: held in place for this step, nothing moves
+            if not self.friction.constant:
+                self._refresh_levels()
+            return
+        zd_new = zd + h * a
+        z_new = z_mid + (0.5 * h) * zd_new
         if self._any_active:
             sgn = self._sign
-            crossed = (sgn * zd_new[:n] <= 0.0) & (sgn != 0.0)
-            if crossed.any():
+            if (sgn * zd_new[:n] + self._sign_pad).min() <= 0.0:
+                # velocity would cross zero: the axis stops here and is a stuck candidate next step
+                crossed = (sgn * zd_new[:n] <= 0.0) & (sgn != 0.0)
                 zd_new[:n][crossed] = 0.0
                 sgn[crossed] = 0.0
-                a_new = None
-            if stuck is not None:
-                a_new = None
-            if a_new is None or not self.friction.constant:
+                self._rest_pending = True
+                a = None
                 self._refresh_levels()
-        self._z, self._zd, self._a = z_new, zd_new, a_new
+            elif not self.friction.constant:
+                self._refresh_levels()
+        self._z, self._zd, self._a = z_new, zd_new, a
 
     def step(self, tau_motor, duration: float) -> None:
         """Apply motor-shaft torques ``tau_motor`` (N*m, drive order) held for ``duration`` s.
@@ -348,9 +391,11 @@ class Plant:
             if duration < 0:
                 raise ValueError(f"duration must be >= 0, got {duration}")
             return
-        if not np.array_equal(tau, self._tau):
-            self._a = None
+        key = tau.tobytes()
+        if key != self._tau_key:
+            self._tau_j = None
             self._tau = tau.copy()
+            self._tau_key = key
         steps = max(1, math.ceil(duration / self.h_max - 1e-9))
         h = duration / steps
         fr = self.friction

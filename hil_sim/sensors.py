@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(eq=False, slots=True)
 class SensorReading:
     encoder_counts: np.ndarray    # int64 (n,), counts since reset position 0
     motor_position: np.ndarray    # rad (n,), motor shaft, quantised to one count

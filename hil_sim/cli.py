@@ -1,0 +1,108 @@
+"""js2-sim: the Js-2 simulator as six CiA 402 drives on a CAN bus, for js2-acquire in another process.
+
+  js2-sim                           # serve a socketcand hub on 127.0.0.1 (ephemeral port, printed) and attach
+  js2-sim --port 29536 --slcan-pty  # fixed port, plus an slcan pseudo-terminal (USB-adapter protocol)
+  js2-sim -i socketcan -c vcan0     # join an existing bus instead (Linux with vcan/SocketCAN)
+
+Physics advances one period per SYNC (lock-step, deterministic) unless --realtime (wall clock).
+"""
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+
+from js2spec.errors import Js2Error
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="js2-sim", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n", 2)[2])
+    p.add_argument("--robot", default="js2")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--cycle-hz", type=float, help="nominal SYNC rate (the physics period in lock-step)")
+    p.add_argument("--realtime", action="store_true", help="step the physics on the wall clock instead of per SYNC")
+    p.add_argument("--fault", action="append", default=[], metavar="KIND[:DRIVE][@CYCLE][xCOUNT]",
+                   help="inject a fault (dead_node, lost_frames, drive_fault, bus_error, heartbeat_loss)")
+    p.add_argument("--q0", help="initial joint angles, comma separated (rad)")
+    h = p.add_argument_group("served bus (default)")
+    h.add_argument("--port", type=int, default=0, help="socketcand hub port on 127.0.0.1 (0 = any free port)")
+    h.add_argument("--channel-name", default="js2", help="socketcand channel name the hub accepts")
+    h.add_argument("--slcan-pty", action="store_true", help="also expose the bus as an slcan pseudo-terminal")
+    b = p.add_argument_group("join an existing bus instead")
+    b.add_argument("-i", "--interface")
+    b.add_argument("-c", "--channel")
+    b.add_argument("-b", "--bitrate", type=int)
+    b.add_argument("--bus-arg", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--duration", type=float, help="exit after this many seconds (default: until Ctrl-C/SIGTERM)")
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return _run(args)
+    except Js2Error as e:
+        print(f"js2-sim: error: {e}", file=sys.stderr)
+        return 2
+
+
+def _run(args) -> int:
+    import numpy as np
+
+    from js2io.bus import bus_kwargs, open_bus, quiet_socketcand
+    from js2spec.robot import load_robot
+
+    from .drives import CanopenSimulator
+    from .drives_core import Fault
+
+    robot = load_robot(args.robot)
+    faults = [Fault.parse(f) for f in args.fault]
+    q0 = None
+    if args.q0:
+        try:
+            q0 = np.array([float(x) for x in args.q0.split(",")])
+        except ValueError:
+            raise Js2Error(f"--q0 {args.q0!r}: write joint angles in rad separated by commas") from None
+    hub = None
+    quiet_socketcand()
+    if args.interface or args.channel or args.bus_arg:
+        kw = bus_kwargs(args.interface, args.channel, args.bitrate, args.bus_arg)
+        where = ", ".join(f"{k}={v}" for k, v in kw.items())
+    else:
+        from .bus_hub import CanHub
+        try:
+            hub = CanHub(port=args.port).start()
+        except OSError as e:
+            raise Js2Error(f"cannot listen on 127.0.0.1:{args.port}: {e}; choose another --port (0 = any)") from None
+        kw = {"interface": "socketcand", "channel": args.channel_name, "host": "127.0.0.1", "port": hub.port,
+              "tcp_tune": True}
+        where = f"socketcand hub 127.0.0.1:{hub.port}"
+    bus = open_bus(kw)
+    sim = CanopenSimulator(robot, bus, cycle_hz=args.cycle_hz, seed=args.seed, faults=faults,
+                           realtime=args.realtime, q0=q0)
+    stop = threading.Event()
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, lambda *a: stop.set())
+    sim.start()
+    print(f"js2-sim: {robot.name}: {sim.n} CiA 402 drives (nodes {sim.node_ids}) on {where}; "
+          f"{'real-time' if args.realtime else 'lock-step'} physics", flush=True)
+    if hub is not None:
+        print(f"js2-sim: PORT {hub.port}", flush=True)
+        print(f"js2-sim: connect with: js2-acquire -i socketcand -c {args.channel_name} --bus-arg port={hub.port} "
+              f"--trial all -o run.mcap", flush=True)
+        if args.slcan_pty:
+            path = hub.add_slcan_pty()
+            print(f"js2-sim: SLCAN {path}", flush=True)
+    try:
+        stop.wait(args.duration)
+    finally:
+        sim.stop()
+        bus.shutdown()
+        if hub is not None:
+            st = hub.stats()
+            hub.stop()
+            drops = sum(e["dropped"] for e in st["endpoints"])
+            print(f"js2-sim: {sim.syncs} SYNCs served, hub relayed {st['frames']} frames, {drops} dropped", flush=True)
+    return 0
