@@ -47,7 +47,7 @@ def logchol_to_pseudo(th: np.ndarray) -> np.ndarray:
     U = np.zeros((4, 4))
     U[_IU] = th
     d = np.diag_indices(4)
-    U[d] = np.exp(U[d])
+    U[d] = np.exp(np.clip(U[d], -40.0, 20.0))
     return U @ U.T
 
 
@@ -157,7 +157,32 @@ class PhysicalConsistencyFit:
             r2 = lam * (pi[:nl] - nom.reshape(-1)) / sc
             return np.concatenate([r1, r2])
 
-        sol = least_squares(res, x0, method="trf", max_nfev=self.max_nfev, x_scale="jac")
+        LE = L @ E
+        nx = len(x0)
+
+        def jac(x):
+            # d pi / d x: links via dJ = dU U^T + U dU^T (log-Cholesky), motor inertias 2 x, others identity
+            D = np.zeros((p, nx))
+            for i in range(n_links):
+                th = x[10 * i:10 * i + 10]
+                U = np.zeros((4, 4))
+                U[_IU] = th
+                dg = np.diag_indices(4)
+                U[dg] = np.exp(np.clip(U[dg], -40.0, 20.0))
+                for k, (a, b) in enumerate(zip(*_IU)):
+                    dU = np.zeros((4, 4))
+                    dU[a, b] = U[a, b] if a == b else 1.0
+                    dJ = dU @ U.T + U @ dU.T
+                    D[10 * i:10 * i + 10, 10 * i + k] = params_from_pseudo(dJ)
+            xm = x[10 * n_links:10 * n_links + len(mc)]
+            D[mc, 10 * n_links + np.arange(len(mc))] = 2 * xm
+            for k, j in enumerate(free_other):
+                D[j, 10 * n_links + len(mc) + k] = 1.0
+            return np.vstack([LE @ D, lam * D[:nl] / sc[:, None]])
+
+        sol = least_squares(res, x0, jac=jac, method="trf", max_nfev=self.max_nfev, x_scale=1.0, ftol=1e-12,
+                            xtol=1e-12, gtol=1e-10)
+        self.sol_ = sol
         pi = assemble(sol.x)
         self.pi_ = pi
         self.links_ = pi[:nl].reshape(n_links, 10)

@@ -189,22 +189,26 @@ class BatchLeastSquares:
 
     @staticmethod
     def _solve(H, y, w):
+        """Weighted normal equations on column-normalised rows (Cholesky; pseudo-inverse if rank-deficient)."""
         p = H.shape[-1]
         sq = np.sqrt(w)
         A = (H * sq[:, :, None]).reshape(-1, p)
         b = (y * sq).reshape(-1)
-        keep = np.any(A != 0, axis=1) | (b != 0)
-        A, b = A[keep], b[keep]
-        d = np.linalg.norm(A, axis=0)
+        n_rows = int(np.sum(np.any(A != 0, axis=1)))
+        G = A.T @ A
+        g = A.T @ b
+        d = np.sqrt(np.diag(G))
         d = np.where(d > 0, d, 1.0)
-        An = A / d
-        coef_n, *_ = np.linalg.lstsq(An, b, rcond=None)
-        coef = coef_n / d
-        r = b - A @ coef
-        dof = max(A.shape[0] - p, 1)
-        sig = float(r @ r / dof)
-        G = np.linalg.pinv(An.T @ An)
-        cov = G / np.outer(d, d)
+        Gn = G / np.outer(d, d)
+        try:
+            Ginv = sla.cho_solve(sla.cho_factor(Gn), np.eye(p))
+        except np.linalg.LinAlgError:
+            Ginv = np.linalg.pinv(Gn)
+        coef = (Ginv @ (g / d)) / d
+        rss = float(b @ b - 2 * coef @ g + coef @ G @ coef)
+        dof = max(n_rows - p, 1)
+        sig = max(rss, 0.0) / dof
+        cov = Ginv / np.outer(d, d)
         return coef, cov, sig
 
     def predict(self, H):

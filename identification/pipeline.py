@@ -149,6 +149,10 @@ def load_logs(paths) -> list:
     return logs
 
 
+def n_of(log) -> int:
+    return log.drives.n
+
+
 def check_same_arm(logs) -> None:
     ref = logs[0]
     for lg in logs[1:]:
@@ -226,6 +230,16 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
             notes.append(f"{lg.path}: {lg.recovered_note}; identified from what was recovered")
         for w in lg.warnings:
             notes.append(f"{lg.path}: {w}")
+        bad = ~np.isfinite(lg.feedback.torque) | ~np.isfinite(lg.feedback.motor_position)
+        frac = bad.mean(axis=0) if len(bad) else np.zeros(n_of(lg))
+        worst = int(np.argmax(frac)) if len(frac) else 0
+        if len(frac) and frac[worst] > 0.5:
+            raise IdentificationError(
+                f"{lg.path}: {100 * frac[worst]:.0f} % of the torque/position samples of axis "
+                f"{lg.drives.joints[worst]} are NaN or infinite: nothing to identify that axis from")
+        if bad.any():
+            notes.append(f"{lg.path}: {int(bad.any(axis=1).sum())} cycles with NaN/inf values excluded "
+                         f"(treated as lost cycles, not interpolated)")
     prog = opt.progress
     # 2. signals per log
     sigs = []

@@ -74,6 +74,12 @@ def fig3(ident, params=None):
                 continue
             mr = ident.methods[mname]
             a.plot(mr.history_iter, mr.history[:, i], style, label=f"{mname}: {mr.beta[i]:.4g}")
+        # y-range from the converged part (the first checkpoints of a weak-prior RLS swing wildly)
+        tail = np.concatenate([ident.methods[m].history[len(ident.methods[m].history) // 5:, i]
+                               for m in ident.methods])
+        lo, hi = np.min(tail), np.max(tail)
+        pad = 0.5 * max(hi - lo, 0.2 * max(abs(hi), abs(lo)), 1e-12)
+        a.set_ylim(lo - pad, hi + pad)
         a.set_ylabel(name, fontsize=9)
         a.set_title(ident.bp.names[i][:110], fontsize=7)
         a.legend(fontsize=7)
