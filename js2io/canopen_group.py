@@ -72,6 +72,9 @@ class CanopenDriveGroup(DriveGroup):
         self._cur = np.zeros(self.n, dtype=np.int64)
         self._got = np.zeros(self.n, dtype=bool)
         self._ngot = 0
+        self._nexpect = self.n
+        self._expect = np.ones(self.n, dtype=bool)   # drives whose TPDO the cycle waits for
+        self._miss = np.zeros(self.n, dtype=int)
         self._done = threading.Event()
         self._hb_time = [None] * self.n
         self._hb_state = [None] * self.n
@@ -196,9 +199,10 @@ class CanopenDriveGroup(DriveGroup):
         self._status[i], self._counts[i], self._cur[i] = TPDO1S.unpack_from(data)
         if not self._got[i]:
             self._got[i] = True
-            self._ngot += 1
-            if self._ngot == self.n:
-                self._done.set()
+            if self._expect[i]:
+                self._ngot += 1
+                if self._ngot >= self._nexpect:
+                    self._done.set()
 
     def _on_heartbeat(self, i, state):
         self._hb_time[i] = time.monotonic()
@@ -234,7 +238,12 @@ class CanopenDriveGroup(DriveGroup):
         self.network.check()          # re-raise what killed the receive thread (bus errors)
         self._got[:] = False
         self._ngot = 0
+        # a drive that missed 3 cycles in a row is not waited for (still read when it answers)
+        self._expect = self._miss < 3
+        self._nexpect = int(self._expect.sum())
         self._done.clear()
+        if self._nexpect == 0:
+            self._done.set()
         now = time.perf_counter()
         if self.realtime:
             if self._next is None:
@@ -258,6 +267,7 @@ class CanopenDriveGroup(DriveGroup):
             self._done.wait(self.lockstep_timeout_s)
             t = None
         self._check_heartbeats()
+        self._miss = np.where(self._got, 0, self._miss + 1)
         return RawFeedback(self._status.copy(), self._counts.copy(), self._cur.copy(), self._got.copy(), t)
 
     def _check_heartbeats(self) -> None:

@@ -95,19 +95,18 @@ def _run(args) -> int:
                 bus = open_bus(kw)
                 where = f"CAN bus {bus.channel_info}"
             else:
-                from hil_sim.drives import CanopenSimulator
-                ch = f"js2-{os.getpid()}-{time.monotonic_ns()}"
-                sim = CanopenSimulator(robot, bus_kwargs={"interface": "virtual", "channel": ch},
-                                       cycle_hz=cycle_hz, seed=args.seed, faults=args.sim_fault,
+                from hil_sim.canopen_inprocess import InProcessCanopen
+                rig = InProcessCanopen(robot, cycle_hz=cycle_hz, seed=args.seed, faults=args.sim_fault,
                                        realtime=args.realtime).start()
-                bus = open_bus({"interface": "virtual", "channel": ch})
+                sim, network, group = rig, rig.network, rig.group
                 where = "in-process simulator on python-can's virtual bus"
-            network = canopen.Network(bus)
-            network.connect()
-            if robot.eds_path is None:
-                raise Js2Error(f"{robot.folder}: no drives.eds (the drives' object dictionary); add it")
-            group = CanopenDriveGroup(robot.drives, network, robot.eds_path, cycle_hz=cycle_hz,
-                                      realtime=args.realtime)
+            if group is None:
+                network = canopen.Network(bus)
+                network.connect()
+                if robot.eds_path is None:
+                    raise Js2Error(f"{robot.folder}: no drives.eds (the drives' object dictionary); add it")
+                group = CanopenDriveGroup(robot.drives, network, robot.eds_path, cycle_hz=cycle_hz,
+                                          realtime=args.realtime)
         print(f"js2-acquire: {robot.name}, trials {', '.join(names)} -> {args.output} ({where}, "
               f"{cycle_hz:g} Hz, {'real time' if args.realtime else 'lock-step'})", file=sys.stderr)
         group.open()
@@ -128,12 +127,12 @@ def _run(args) -> int:
     finally:
         if group is not None:
             group.close()
-        if network is not None:
+        if sim is None and network is not None:
             try:
                 network.disconnect()
             except Exception:
                 pass
-        elif bus is not None:
+        elif sim is None and bus is not None:
             bus.shutdown()
         if sim is not None:
-            sim.stop()
+            sim.close()
