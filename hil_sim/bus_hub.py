@@ -132,6 +132,8 @@ class CanHub:
         except BlockingIOError:
             return
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        # a small kernel buffer keeps frames in OUR bounded queue (drop-oldest) instead of piling up stale in TCP
+        conn.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 64 * 1024)
         conn.setblocking(False)
         ep = _Endpoint(self, "socketcand", f"{addr[0]}:{addr[1]}", self.max_queue)
         ep.sock = conn

@@ -1,0 +1,190 @@
+"""Across processes: `js2-sim` serves its drives on the loopback socketcand hub, `js2-acquire` runs a trial against
+it from another process. Plus: the slcan (USB adapter) path through a pty, Ctrl-C/SIGTERM, and a killed writer."""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from test_acq_support import short_trials_yaml
+from js2spec.log import read_log
+
+BIN = Path(sys.executable).parent
+
+
+def _start_sim(*extra):
+    p = subprocess.Popen([str(BIN / "js2-sim"), "--port", "0", *extra], stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True)
+    lines = []
+    port = None
+    t_end = time.monotonic() + 60
+    while time.monotonic() < t_end:
+        line = p.stdout.readline()
+        if not line:
+            break
+        lines.append(line)
+        m = re.search(r"PORT (\d+)", line)
+        if m:
+            port = int(m.group(1))
+            break
+    if port is None:
+        p.kill()
+        pytest.fail("js2-sim did not report its port:\n" + "".join(lines))
+    return p, port
+
+
+def test_sim_and_acquire_in_two_processes(tmp_path):
+    sim, port = _start_sim()
+    try:
+        out = tmp_path / "xp.mcap"
+        r = subprocess.run([str(BIN / "js2-acquire"), "-i", "socketcand", "-c", "js2", "--bus-arg", f"port={port}",
+                            "--trial", "static,acceleration", "-o", str(out), "--config",
+                            str(short_trials_yaml(tmp_path / "t.yaml")), "--no-progress"],
+                           capture_output=True, text=True, timeout=240)
+        assert r.returncode == 0, r.stdout + r.stderr
+        assert "socketcand" in r.stderr
+    finally:
+        sim.send_signal(signal.SIGTERM)
+        rest = sim.communicate(timeout=30)[0]
+    assert sim.returncode == 0, rest
+    m = re.search(r"(\d+) SYNCs served, hub relayed (\d+) frames, (\d+) dropped", rest)
+    assert m and int(m.group(1)) > 1000 and int(m.group(3)) == 0, rest
+    log = read_log(out)
+    assert log.source == "hil_sim:canopen"
+    assert log.trials() == ["static", "acceleration"]
+    assert len([e for e in log.events if e["kind"] == "breakaway"]) == 4
+    assert np.all(np.diff(log.feedback.cycle) == 1) and log.feedback.valid.all()
+    assert int(m.group(1)) >= len(log.feedback.cycle)
+
+
+def test_slcan_pty_smoke():
+    """A python-can slcan bus (the USB-CAN adapter protocol, via pyserial) on the hub's pty talks to a socketcand
+    client: frames pass both ways."""
+    from hil_sim.bus_hub import CanHub
+    from js2io.bus import open_bus
+
+    hub = CanHub().start()
+    try:
+        pty = hub.add_slcan_pty()
+        sl = open_bus({"interface": "slcan", "channel": pty, "bitrate": 1000000, "sleep_after_open": 0.05})
+        sc = open_bus({"interface": "socketcand", "channel": "js2", "host": "127.0.0.1", "port": hub.port,
+                       "tcp_tune": True})
+        try:
+            time.sleep(0.1)
+            sl.send(can.Message(arbitration_id=0x181, data=bytes([1, 2, 3, 4, 5, 6, 7, 8]), is_extended_id=False))
+            m = sc.recv(2.0)
+            assert m is not None and m.arbitration_id == 0x181 and bytes(m.data) == bytes(range(1, 9))
+            sc.send(can.Message(arbitration_id=0x080, data=b"", is_extended_id=False))
+            sc.send(can.Message(arbitration_id=0x201, data=bytes([0x0F, 0, 0x10, 0]), is_extended_id=False))
+            got = []
+            t_end = time.monotonic() + 2.0
+            while len(got) < 2 and time.monotonic() < t_end:
+                m = sl.recv(0.5)
+                if m is not None:
+                    got.append((m.arbitration_id, bytes(m.data)))
+            assert got == [(0x080, b""), (0x201, bytes([0x0F, 0, 0x10, 0]))]
+        finally:
+            sl.shutdown()
+            sc.shutdown()
+        st = hub.stats()
+        assert st["frames"] == 3 and sum(e["dropped"] for e in st["endpoints"]) == 0
+    finally:
+        hub.stop()
+
+
+def test_hub_drops_oldest_when_a_reader_stalls():
+    """A client that never reads must not block the others: its queue drops the oldest frames, counted."""
+    import socket
+    from hil_sim.bus_hub import CanHub
+    from js2io.bus import open_bus
+
+    hub = CanHub(max_queue=50).start()
+    try:
+        stalled = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        stalled.connect(("127.0.0.1", hub.port))
+        stalled.recv(64)
+        stalled.sendall(b"< open js2 >")
+        time.sleep(0.05)
+        stalled.recv(64)
+        stalled.sendall(b"< rawmode >")
+        time.sleep(0.05)
+        stalled.recv(64)
+        a = open_bus({"interface": "socketcand", "channel": "js2", "host": "127.0.0.1", "port": hub.port})
+        b = open_bus({"interface": "socketcand", "channel": "js2", "host": "127.0.0.1", "port": hub.port})
+        try:
+            import threading
+            N = 20000
+            got = []
+
+            def reader():
+                t_end = time.monotonic() + 30
+                while len(got) < N and time.monotonic() < t_end:
+                    m = b.recv(0.5)
+                    if m is not None:
+                        got.append(int.from_bytes(m.data, "little"))
+
+            th = threading.Thread(target=reader)
+            th.start()
+            for k in range(N):
+                a.send(can.Message(arbitration_id=0x100 + (k % 16), data=k.to_bytes(4, "little"), is_extended_id=False))
+                if k % 50 == 49:
+                    time.sleep(0.002)   # a bus-like pace the live reader can follow
+            th.join()
+            assert got == list(range(N)), f"the live client got {len(got)} of {N} frames (in order)"
+            drops = [e["dropped"] for e in hub.stats()["endpoints"]]
+            assert max(drops) > 0 and sorted(drops)[:2] == [0, 0], drops
+        finally:
+            a.shutdown()
+            b.shutdown()
+            stalled.close()
+    finally:
+        hub.stop()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_signal_ramps_down_disables_and_closes(tmp_path, sig):
+    out = tmp_path / "int.mcap"
+    p = subprocess.Popen([str(BIN / "js2-acquire"), "--trial", "velocity", "-o", str(out), "--no-progress"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t_end = time.monotonic() + 60
+    while time.monotonic() < t_end and (not out.exists() or out.stat().st_size < 200_000):
+        time.sleep(0.1)
+    p.send_signal(sig)
+    so, se = p.communicate(timeout=60)
+    assert p.returncode == 1, so + se
+    log = read_log(out)
+    assert not log.truncated
+    ab = [e for e in log.events if e["kind"] == "abort"]
+    assert ab and f"interrupted ({sig.name})" in ab[-1]["detail"]
+    # the last commands ramp to zero, and the drives end disabled
+    tt = log.command.target_torque
+    assert np.all(tt[-1] == 0.0)
+    k_ab = np.searchsorted(log.command.t, ab[-1]["t"])
+    ramp = np.abs(tt[k_ab:]).max(axis=1)
+    assert np.all(np.diff(ramp[: int(0.3 * 500)]) <= 1e-9), "torques must ramp down monotonically"
+    assert all(s & 0x4F == 0x40 for s in log.feedback.status[-1]), log.feedback.status[-1]
+    assert np.all(np.abs(tt) <= np.asarray(log.drives.torque_limit) + 1e-12)
+
+
+def test_killed_writer_leaves_readable_log(tmp_path):
+    out = tmp_path / "kill.mcap"
+    p = subprocess.Popen([str(BIN / "js2-acquire"), "--trial", "static", "-o", str(out), "--no-progress", "--direct"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    t_end = time.monotonic() + 60
+    while time.monotonic() < t_end and (not out.exists() or out.stat().st_size < 300_000):
+        time.sleep(0.05)
+    p.kill()
+    p.wait(timeout=10)
+    log = read_log(out)
+    assert log.truncated
+    assert len(log.feedback.t) > 1000
+    assert [e["kind"] for e in log.events][:1] == ["trial_start"]
