@@ -89,6 +89,7 @@ class ArmDynamics:
         self.Kp = P @ K                                    # q_pin = Kp theta_m + off_p
         self.Kp_inv = np.linalg.inv(self.Kp)
         self.Kp_inv_T = self.Kp_inv.T.copy()
+        self.Kp_T = self.Kp.T.copy()
         self.off_p = P @ np.asarray(drives.joint_offset, dtype=float)
         self.motor_inertia = np.asarray(motor_inertia, dtype=float).copy()
         self.elastic = [int(j) for j in elastic_joints]     # drive indices of elastic joints
@@ -148,18 +149,40 @@ class ArmDynamics:
         return a, lam
 
     def solve_fast(self, z, zd, Q, stuck=None):
-        """As :meth:`solve` for the fast path (rigid, diagonal reflected armature): ABA for the free motion,
-        and for stuck axes the constraint through the inverse inertia (pinocchio ``computeMinverse``)::
+        """As :meth:`solve` for the fast path (rigid, diagonal reflected armature ``A``).
+
+        Nothing stuck: ABA with armature, O(n). A few axes stuck: the constraint through the inverse inertia
+        (pinocchio ``computeMinverse``)::
 
             a0 = M_z^-1 rhs,   M_z^-1[S,S] lam_S = a0[S],   a = a0 - M_z^-1[:,S] lam_S   (a[S] = 0)
-        """
+
+        Most axes stuck (the sequential tests: one axis moves, the others are held): the reduced system
+        ``M_z[F,F] a_F = rhs_F``, ``lam_S = rhs_S - M_z[S,F] a_F`` with ``M_z = K^T (M + A) K`` (CRBA)."""
         q = self.Kp @ z + self.off_p
-        a = self.Kp_inv @ pin.aba(self.model_arm, self.data_arm, q, self.Kp @ zd, self.Kp_inv_T @ Q)
         lam = np.zeros(self.n)
         if stuck is None or not stuck.any():
-            return a, lam
-        Minv = self.Kp_inv @ pin.computeMinverse(self.model_arm, self.data_arm, q) @ self.Kp_inv_T
+            return self.Kp_inv @ pin.aba(self.model_arm, self.data_arm, q, self.Kp @ zd, self.Kp_inv_T @ Q), lam
         S = np.flatnonzero(stuck)
+        if 2 * len(S) > self.n:
+            F = np.flatnonzero(~stuck)
+            M = pin.crba(self.model_arm, self.data_arm, q)
+            if not self._crba_full:
+                M = np.triu(M) + np.triu(M, 1).T
+            Mz = self.Kp_T @ M @ self.Kp
+            rhs = Q - self.Kp_T @ pin.nonLinearEffects(self.model_arm, self.data_arm, q, self.Kp @ zd)
+            a = np.zeros(self.n)
+            if len(F) == 0:
+                lam[S] = rhs[S]
+            elif len(F) == 1:
+                f = F[0]
+                a[f] = rhs[f] / Mz[f, f]
+                lam[S] = rhs[S] - Mz[S, f] * a[f]
+            else:
+                a[F] = np.linalg.solve(Mz[np.ix_(F, F)], rhs[F])
+                lam[S] = rhs[S] - Mz[np.ix_(S, F)] @ a[F]
+            return a, lam
+        a = self.Kp_inv @ pin.aba(self.model_arm, self.data_arm, q, self.Kp @ zd, self.Kp_inv_T @ Q)
+        Minv = self.Kp_inv @ pin.computeMinverse(self.model_arm, self.data_arm, q) @ self.Kp_inv_T
         if len(S) == 1:
             s = S[0]
             lam_s = a[s] / Minv[s, s]

@@ -105,3 +105,28 @@ def test_sliding_axis_stops_and_sticks():
     for _ in range(100):
         plant.step(hold, 0.002)
     assert plant.q_motor[0] == q_stop
+
+
+@pytest.mark.parametrize("coupling", ["js2", "tx40"])
+def test_stuck_axes_constraint_solve_balances_eq1(tmp_path, coupling):
+    """For every size of stuck set, the plant's constrained solve gives a_S = 0 and the holding torque lam_S such
+    that eq. 1 (independent RNEA + motor terms) balances: tau - lam = K^T rnea + J_a a + B w + f_c sgn(w)."""
+    robot = js2() if coupling == "js2" else make_robot(tmp_path, K=K_TX40)
+    plant = Plant(robot)
+    ref = Reference(robot)
+    d = plant.dyn
+    rng = np.random.default_rng(11)
+    for size in range(1, plant.n + 1):
+        for _ in range(3):
+            stuck = np.zeros(plant.n, dtype=bool)
+            stuck[rng.choice(plant.n, size, replace=False)] = True
+            q = np.linalg.solve(ref.K, rng.uniform(-1.2, 1.2, plant.n))
+            dq = rng.uniform(-100, 100, plant.n) * ~stuck
+            tau = rng.uniform(-0.2, 0.2, plant.n)
+            Q = tau - ref.B * dq - ref.fc * np.sign(dq)
+            solvers = [d.solve] + ([d.solve_fast] if d.fast else [])
+            for solve in solvers:
+                a, lam = solve(q, dq, Q, stuck)
+                assert np.all(a[stuck] == 0.0)
+                assert np.all(lam[~stuck] == 0.0)
+                np.testing.assert_allclose(tau - lam, ref.motor_torque(q, dq, a), rtol=0, atol=1e-12)
