@@ -96,6 +96,7 @@ class DriveCore:
         self._hold_pos = None
         self._prev_counts = None
         self.velocity = 0.0                   # rad/s, filtered estimate from the encoder
+        self._pos = 0.0
 
     # -- state machine ---------------------------------------------------------------------------------
     def statusword(self) -> int:

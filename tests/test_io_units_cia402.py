@@ -1,0 +1,112 @@
+"""Driver-layer pieces without a bus: unit conversion (the one place), the CiA 402 state machine on both sides,
+fault specs, bus options, software limits."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hil_sim.drives_core import DriveCore, Fault
+from js2io import cia402
+from js2io.bus import bus_kwargs
+from js2io.group import motor_position_limits
+from js2io.units import Scaling
+from js2spec.errors import ConfigError, Js2Error
+from js2spec.robot import load_robot
+
+ROBOT = load_robot("js2")
+
+
+def test_scaling_device_units_to_si():
+    s = Scaling.from_drives(ROBOT.drives)
+    assert np.allclose(s.position_si([4096] * 6), 2 * math.pi)
+    assert np.allclose(s.torque_si([1000] * 6), ROBOT.drives.rated_torque)
+    assert np.allclose(s.current_si([500] * 6), np.asarray(ROBOT.drives.rated_current) / 2)
+    tau = np.array([0.1234, -0.05, 0.01, 0.0, -0.09, 0.03])
+    p = s.torque_permille(tau)
+    assert np.all(np.abs(s.torque_si(p) - tau) <= s.rated_torque / 2000 + 1e-15)
+    # 0x6072 never above the configured limit, even when the limit is not a whole per-mille
+    lim = np.array([0.30049, 0.3, 0.15, 0.09, 0.09, 0.0999])
+    assert np.all(s.torque_si(s.torque_limit_permille(lim)) <= lim + 1e-15)
+    assert s.torque_limit_permille(lim)[0] == 939
+
+
+def test_master_walks_drive_to_enabled_and_resets_fault():
+    d = DriveCore(0.1, 3.3, 4096, 0.002)
+    cw = 0
+    for _ in range(6):
+        cw = cia402.next_controlword(cia402.state_of(d.statusword()), "enabled", cw)
+        d.on_controlword(cw)
+    assert d.state == cia402.ENABLED and cia402.state_of(d.statusword()) == cia402.ENABLED
+    assert d.fault(0x2310) and not d.fault(0x2310)
+    d.torque(0)                         # fault reaction completes within a period
+    assert cia402.state_of(d.statusword()) == cia402.FAULT and d.error_code == 0x2310
+    d.on_controlword(cia402.CW_ENABLE)  # no rising edge on bit 7: stays in FAULT
+    assert d.state == cia402.FAULT
+    seen = []
+    for _ in range(8):
+        cw = cia402.next_controlword(cia402.state_of(d.statusword()), "enabled", cw)
+        d.on_controlword(cw)
+        seen.append(cw)
+    assert cia402.CW_FAULT_RESET in seen and d.state == cia402.ENABLED and d.error_code == 0
+
+
+def test_drive_limits_torque_and_internal_quick_stop_latches():
+    d = DriveCore(0.1, 3.3, 4096, 0.002)
+    d.max_torque = 900
+    for cw in (6, 7, 15):
+        d.on_controlword(cw)
+    d.target_torque = 2000
+    d.update_velocity(0)
+    tau, _ = d.torque(0)
+    assert tau == pytest.approx(0.09) and d.statusword() & 0x0800
+    assert d.quick_stop()
+    d.on_controlword(cia402.CW_ENABLE)          # a quick stop raised by the drive is not undone by 0x0F
+    assert d.state == cia402.QUICK_STOP
+    d.on_controlword(cia402.CW_DISABLE_VOLTAGE)
+    assert d.state == cia402.SWITCH_ON_DISABLED
+    d.pos_max = 100
+    for cw in (6, 7, 15):
+        d.on_controlword(cw)
+    _, code = d.torque(101)                      # beyond the software limit 0x607D
+    assert code == 0x8612
+
+
+def test_fault_spec_parsing():
+    f = Fault.parse("lost_frames:1@200x20")
+    assert (f.kind, f.drive, f.at_cycle, f.count) == ("lost_frames", 1, 200, 20)
+    assert Fault.parse("bus_error@400").drive is None
+    with pytest.raises(ConfigError, match="unknown fault kind"):
+        Fault.parse("meteor:1@3")
+    with pytest.raises(ConfigError, match="needs a drive index"):
+        Fault.parse("drive_fault@3")
+
+
+def test_bus_options_like_python_can_tools():
+    assert bus_kwargs("socketcan", "can0", 1000000) == {"interface": "socketcan", "channel": "can0",
+                                                        "bitrate": 1000000}
+    kw = bus_kwargs("socketcand", "js2", None, ["port=4000"])
+    assert kw == {"interface": "socketcand", "channel": "js2", "host": "127.0.0.1", "port": 4000, "tcp_tune": True}
+    with pytest.raises(Js2Error, match="KEY=VALUE"):
+        bus_kwargs("virtual", "x", None, ["oops"])
+
+
+def test_motor_limits_contain_the_joint_envelope_with_coupled_wrist():
+    d = ROBOT.drives
+    lo, hi = motor_position_limits(d)
+    rng = np.random.default_rng(0)
+    q = rng.uniform(d.position_min, d.position_max, size=(2000, d.n))
+    m = (np.linalg.inv(np.asarray(d.gear_ratio_matrix)) @ q.T).T
+    assert np.all(m >= lo) and np.all(m <= hi)
+
+
+def test_cli_errors_are_one_line(tmp_path, capsys):
+    from js2io.cli import main
+    assert main(["--trial", "static", "-o", str(tmp_path / "x.mcap"), "--robot", "nonexistent-arm"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("js2-acquire: error:") and err.count("\n") == 1 and "Traceback" not in err
+    assert main(["--trial", "bogus", "-o", str(tmp_path / "x.mcap")]) == 2
+    assert "unknown trial 'bogus'" in capsys.readouterr().err
+    assert main(["--trial", "static", "-o", str(tmp_path / "x.mcap"), "-i", "nosuchinterface", "-c", "x"]) == 2
+    assert "cannot open the CAN bus" in capsys.readouterr().err
