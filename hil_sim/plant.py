@@ -148,6 +148,7 @@ class Plant:
         self._sign = np.zeros(n)
         self._tau = np.zeros(n)
         self._tau_key = self._tau.tobytes()
+        self._last_duration = None
         self._a = None                 # cached acceleration at the current state (FSAL)
         self._stuck = None
         self._rest_pending = True      # some axis with dry friction may be at rest: run the stick check
@@ -336,6 +337,33 @@ class Plant:
         self._lam = lam
         return a, stuck
 
+    def _substep_sliding(self, h, tau):
+        """:meth:`_substep` specialised for the fast path with every axis sliding (the common case while moving):
+        the same arithmetic, inlined (no constraint, no effects), to keep the per-sample cost low."""
+        d = self.dyn
+        z, zd, a_prev = self._z, self._zd, self._a
+        hh = 0.5 * h
+        z_mid = z + hh * zd
+        zd_mid = zd if a_prev is None else zd + hh * a_prev
+        tau_j = self._tau_j
+        if tau_j is None:
+            tau_j = self._tau_j = d.Kp_inv_T @ (tau - self._coulomb_signed)
+        a = d.Kp_inv @ pin.aba(d.model_arm, d.data_arm, d.Kp @ z_mid + d.off_p, d.Kp @ zd_mid,
+                               tau_j - self._viscous_j @ zd_mid)
+        zd_new = zd + h * a
+        z_new = z_mid + hh * zd_new
+        self._stuck = None
+        if self._any_active:
+            sgn = self._sign
+            if (sgn * zd_new + self._sign_pad).min() <= 0.0:
+                crossed = (sgn * zd_new <= 0.0) & (sgn != 0.0)
+                zd_new[crossed] = 0.0
+                sgn[crossed] = 0.0
+                self._rest_pending = True
+                a = None
+                self._refresh_levels()
+        self._z, self._zd, self._a = z_new, zd_new, a
+
     def _substep(self, h, tau):
         """One fixed step of the midpoint (leapfrog) scheme with one dynamics evaluation::
 
@@ -399,13 +427,20 @@ class Plant:
             self._tau_j = None
             self._tau = tau.copy()
             self._tau_key = key
-        steps = max(1, math.ceil(duration / self.h_max - 1e-9))
+        if duration != self._last_duration:
+            self._last_steps = max(1, math.ceil(duration / self.h_max - 1e-9))
+            self._last_duration = duration
+        steps = self._last_steps
         h = duration / steps
         fr = self.friction
         if fr.has_thermal:
             self._refresh_levels()
+        simple = self._simple
         for _ in range(steps):
-            self._substep(h, tau)
+            if simple and not self._rest_pending:
+                self._substep_sliding(h, tau)
+            else:
+                self._substep(h, tau)
         self._t += duration
         if fr.has_thermal:
             # first-order winding temperature, exact for the held current: dT' = (heating I^2 - dT) / tau_th
