@@ -149,7 +149,7 @@ class Plant:
         self._tau = np.zeros(n)
         self._tau_key = self._tau.tobytes()
         self._last_duration = None
-        self._a = None                 # cached acceleration at the current state (FSAL)
+        self._a = None                 # previous step's acceleration (extrapolates the mid-step velocity)
         self._stuck = None
         self._rest_pending = True      # some axis with dry friction may be at rest: run the stick check
         self._temperature_rise = self.friction.thermal_initial.copy()
