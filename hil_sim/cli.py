@@ -106,3 +106,7 @@ def _run(args) -> int:
             drops = sum(e["dropped"] for e in st["endpoints"])
             print(f"js2-sim: {sim.syncs} SYNCs served, hub relayed {st['frames']} frames, {drops} dropped", flush=True)
     return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

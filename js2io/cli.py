@@ -136,3 +136,7 @@ def _run(args) -> int:
             bus.shutdown()
         if sim is not None:
             sim.close()
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -144,10 +144,19 @@ class Tracker:
         self.was_open: set[int] = set()
 
     def observe(self, fb: Feedback) -> None:
+        """Velocity from encoder differences; a lost (stale) reading is skipped, the next valid one spans the gap."""
         q = fb.motor_position
-        if self.q is not None:
-            self.v += self.alpha * ((q - self.q) / self.ctx.dt - self.v)
-        self.q = q.copy()
+        if self.q is None:
+            self.q = q.copy()
+            self._k = np.full(self.ctx.n, fb.cycle)
+            return
+        ok = np.asarray(fb.valid, dtype=bool)
+        if ok.any():
+            gap = np.maximum(fb.cycle - self._k, 1) * self.ctx.dt
+            v_raw = (q - self.q) / gap
+            self.v = np.where(ok, self.v + self.alpha * (v_raw - self.v), self.v)
+            self.q = np.where(ok, q, self.q)
+            self._k = np.where(ok, fb.cycle, self._k)
 
     def command(self, ref: Ref) -> np.ndarray:
         c = self.ctx
