@@ -306,12 +306,14 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
             f"fit (trials present: {', '.join(have)}); pass --fit-trials with one that is there")
     fitW, fitY, fitV = [], [], []
     val_parts = []
+    fit_where, val_where = [], []   # (Signals, sample indices): lets other models be evaluated on the same samples
     for name in fit_names:
         for sp in spans[name]:
             sig = sigs[sp.log_index]
             idx = _span_index(sig, sp.t0, sp.t1)
             W, y, v = _regressor_rows(arm, bp, sig, idx, opt.offsets, _progress(prog, f"regressor {name}"))
             fitW.append(W), fitY.append(y), fitV.append(v)
+            fit_where.append((sig, idx))
     W = np.concatenate(fitW)
     Y = np.concatenate(fitY)
     V = np.concatenate(fitV)
@@ -322,6 +324,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
             sig = sigs[sp.log_index]
             idx = _span_index(sig, sp.t0, sp.t1)
             val_parts.append(_regressor_rows(arm, bp, sig, idx, opt.offsets) + (f"{logs[sp.log_index].path}:{name}",))
+            val_where.append((sig, idx))
     for vp in opt.validate_paths:
         vlog = read_log(vp)
         check_same_arm([logs[0], vlog])
@@ -334,12 +337,24 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
         for s in chosen:
             idx = _span_index(vsig, s.t0, s.t1)
             val_parts.append(_regressor_rows(arm, bp, vsig, idx, opt.offsets) + (f"{vlog.path}:{s.name}",))
+            val_where.append((vsig, idx))
     if not val_parts:
         k = int(round(len(W) * (1 - opt.holdout)))
         if k < 10 or len(W) - k < 10:
             raise IdentificationError(f"{paths[0]}: too few samples ({len(W)}) to hold out a validation part")
         val_parts.append((W[k:], Y[k:], V[k:], f"last {opt.holdout:.0%} of the fit trial(s) (held out)"))
         W, Y, V = W[:k], Y[:k], V[:k]
+        allw = [(sg_, ix) for sg_, ix in fit_where]
+        sizes = np.cumsum([len(ix) for _, ix in allw])
+        fit_where, val_where = [], []
+        start = 0
+        for (sg_, ix), end in zip(allw, sizes):
+            cut = min(max(k - start, 0), len(ix))
+            if cut > 0:
+                fit_where.append((sg_, ix[:cut]))
+            if cut < len(ix):
+                val_where.append((sg_, ix[cut:]))
+            start = end
         notes.append(f"no validation trial: the last {opt.holdout:.0%} of the fitting data was held out for validation")
     if len(W) < 2 * bp.n:
         raise IdentificationError(f"{paths[0]}: only {len(W)} usable samples in the fit trial(s)")
@@ -412,7 +427,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
             notes.append(f"physically consistent fit failed ({exc})")
     # 7. validation
     validation = validate(methods, chosen, val_parts, phys, bp)
-    fit_data = {"W": W, "Y": Y, "V": V, "weights": wts}
+    fit_data = {"W": W, "Y": Y, "V": V, "weights": wts, "where": fit_where}
     friction_out = (fs_, fs_sd, fc_, fc_sd, fv_, fv_sd)
     if chosen == "simultaneous":
         # friction as the simultaneous method identified it
@@ -430,7 +445,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
                           friction_viscous=friction_out[4], friction_viscous_std=friction_out[5], methods=methods,
                           chosen=chosen, condition_number=cond, condition_number_raw=cond_raw, n_fit_samples=len(W),
                           validation=validation, physical=phys, fit_data=fit_data,
-                          val_data={"parts": val_parts})
+                          val_data={"parts": val_parts, "where": val_where})
 
 
 def rms_nrms(pred: np.ndarray, meas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -77,8 +77,12 @@ def arm_model(urdf_text: str, drives, urdf_name: str = "robot.urdf") -> ArmModel
     Raises ConfigError (naming the file) if the URDF's moving joints are not exactly ``drives.joints``, or a joint is
     not a 1-DOF revolute/prismatic joint.
     """
+    import re
+
+    # <dynamics> (damping/friction) is not used here (friction is identified) and pinocchio refuses some published
+    # values (negative friction), so it is stripped before parsing
     try:
-        model = pin.buildModelFromXML(urdf_text)
+        model = pin.buildModelFromXML(re.sub(r"<dynamics\b[^>]*/>", "", urdf_text))
     except Exception as exc:  # pinocchio raises RuntimeError/ValueError with its own text
         raise ConfigError(urdf_name, None, f"not a URDF pinocchio can read ({exc})") from None
     names = [model.names[i] for i in range(1, model.njoints)]
