@@ -22,7 +22,7 @@ import yaml
 
 from js2spec.errors import ConfigError
 
-from .cia402 import MODE_CST
+from .cia402 import MODE_CSV, MODE_CST
 from .group import Command, Feedback
 
 TRIAL_NAMES = ("static", "velocity", "acceleration", "excitation", "validation")
@@ -129,6 +129,7 @@ class Ref:
     q: np.ndarray                      # motor position reference (rad)
     dq: np.ndarray                     # motor velocity reference (rad/s)
     open_loop: dict = field(default_factory=dict)   # drive -> torque (N*m): bypass the tracker on that axis
+    csv: tuple = ()                    # drives run by their own velocity loop (CSV, mode 9) on this cycle
 
 
 class Tracker:
@@ -216,9 +217,35 @@ class Trial:
             return TrialStep(Command(self.tracker.command(Ref(self.hold_q, np.zeros(self.ctx.n))),
                                      mode=np.full(self.ctx.n, MODE_CST)), ev, done=True)
         self.hold_q = ref.q
+        mode = np.full(self.ctx.n, MODE_CST)
+        vel = None
+        if ref.csv:
+            # cascaded: host position loop -> drive velocity loop; the torque is the drive's (measured, not commanded)
+            vel = np.zeros(self.ctx.n)
+            opened = dict(ref.open_loop)
+            for i in ref.csv:
+                mode[i] = MODE_CSV
+                vel[i] = ref.dq[i] + self.csv_kpos * (ref.q[i] - self.tracker.q[i])
+                opened[i] = float(fb.torque[i])
+            ref = Ref(ref.q, ref.dq, opened)
         tau = self.tracker.command(ref)
+        if vel is not None:
+            tau[mode == MODE_CSV] = 0.0
         ev, self._events = self._events, []
-        return TrialStep(Command(tau, mode=np.full(self.ctx.n, MODE_CST)), ev)
+        return TrialStep(Command(tau, mode=mode, target_velocity=vel), ev)
+
+    csv_kpos = 20.0   # 1/s: host position correction added to the CSV velocity target
+
+    def with_csv(self, gen, axes: tuple):
+        """Run a reference generator with `axes` in CSV (mode 9)."""
+        try:
+            ref = next(gen)
+            while True:
+                ref.csv = tuple(axes)
+                fb = yield ref
+                ref = gen.send(fb)
+        except StopIteration:
+            return
 
     def emit(self, kind: str, **fields) -> None:
         self._events.append(dict(kind=kind, **fields))
@@ -373,6 +400,10 @@ class VelocityTrial(Trial):
         self.acc = _vec(c, "acceleration", n, self.path, default=list(0.5 * ctx.acc_max))
         self.steady_s = float(c.get("steady_s", 0.8))
         self.settle_s = float(c.get("settle_s", 0.15))
+        self.mode = str(c.get("mode", "cst")).lower()
+        if self.mode not in ("cst", "csv"):
+            raise ConfigError(self.path, "velocity.mode", f"{self.mode!r}: cst (host loops, mode 10) or csv (the "
+                              f"drive's velocity loop, mode 9)")
 
     def runs(self, i: int):
         m_pose = self.ctx.motor(self.pose)
@@ -400,6 +431,17 @@ class VelocityTrial(Trial):
         ctx = self.ctx
         nseg = 0
         for i in self.axes:
+            if self.mode == "csv":
+                yield from self.with_csv(self.axis_runs(i), (i,))
+                yield from self.hold(self.ctx.motor(self.pose), 0.2)
+            else:
+                yield from self.axis_runs(i)
+            nseg += 2 * len(self.runs(i)[1])
+        self.summary = {"segments": nseg}
+
+    def axis_runs(self, i):
+        ctx = self.ctx
+        if True:
             m_pose, runs = self.runs(i)
             yield from self.move(m_pose)
             for v, a, b, ta, tc in runs:
@@ -409,12 +451,10 @@ class VelocityTrial(Trial):
                 yield from self.hold(start, 0.15)
                 for direction, (p0, p1) in ((1, (a, b)), (-1, (b, a))):
                     yield from self.run(i, m_pose, p0, p1, v, ta, tc, direction)
-                    nseg += 1
                     end = m_pose.copy()
                     end[i] = p1
                     yield from self.hold(end, 0.1)
             yield from self.move(m_pose, speed_fraction=0.6)
-        self.summary = {"segments": nseg}
 
     def run(self, i, m_pose, p0, p1, v, ta, tc, direction):
         ctx = self.ctx
