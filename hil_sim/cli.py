@@ -35,6 +35,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("-c", "--channel")
     b.add_argument("-b", "--bitrate", type=int)
     b.add_argument("--bus-arg", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--rt-priority", type=int, default=0, metavar="N",
+                   help="SCHED_FIFO priority N for the simulator (Linux; root/CAP_SYS_NICE); 0 = off")
     p.add_argument("--duration", type=float, help="exit after this many seconds (default: until Ctrl-C/SIGTERM)")
     return p
 
@@ -57,7 +59,9 @@ def _run(args) -> int:
     from .drives import CanopenSimulator
     from .drives_core import Fault
 
+    from js2io.rt import set_realtime_priority
     robot = load_robot(args.robot)
+    set_realtime_priority(args.rt_priority)
     faults = [Fault.parse(f) for f in args.fault]
     q0 = None
     if args.q0:

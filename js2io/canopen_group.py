@@ -86,6 +86,7 @@ class CanopenDriveGroup(DriveGroup):
         self.sync_times: list[float] = []
         self.keep_sync_times = False
         self._opened = False
+        self.warnings: list[str] = []
         self.source_detail = "hardware"
         self._rpdo_msgs = [can.Message(arbitration_id=0x200 + nid, data=bytes(4), is_extended_id=False)
                            for nid in self.node_ids]
@@ -115,6 +116,16 @@ class CanopenDriveGroup(DriveGroup):
         except canopen.SdoCommunicationError as e:
             raise Js2Error(f"node {self.node_ids[i]}: no SDO answer reading 0x{index:04X} ({e}); check that the drive "
                            f"is powered, its node-id ({self.node_ids[i]}), the bus and the bitrate") from None
+
+    def _optional(self, i, index, sub, value):
+        """A write some drives refuse (object absent): warn, go on."""
+        try:
+            self._sdo_write(i, index, sub, value)
+        except Js2Error as e:
+            if "no SDO answer" in str(e):
+                raise
+            log.warning("%s (optional object, continuing)", e)
+            self.warnings.append(str(e))
 
     def _map(self, i, comm, mapping, cob, entries, trans_type=1, enable=True):
         self._sdo_write(i, comm, 1, cob | 0x80000000)          # disable while mapping
@@ -159,10 +170,10 @@ class CanopenDriveGroup(DriveGroup):
                 raise Js2Error(f"node {nid}: max torque 0x6072 did not take the value {self.limit_permille[i]}")
             self._sdo_write(i, 0x607D, 1, int(lo[i]))
             self._sdo_write(i, 0x607D, 2, int(hi[i]))
-            self._sdo_write(i, 0x605A, None, 6)                              # quick stop: ramp, stay (hold)
+            self._optional(i, 0x605A, None, 6)                               # quick stop: ramp, stay (hold)
             if period_ms == int(period_ms):
-                self._sdo_write(i, 0x60C2, 1, int(period_ms))
-                self._sdo_write(i, 0x60C2, 2, -3)
+                self._optional(i, 0x60C2, 1, int(period_ms))                 # interpolation period = SYNC
+                self._optional(i, 0x60C2, 2, -3)
             self._map(i, 0x1400, 0x1600, 0x200 + nid, [0x60400010, 0x60710010])
             self._map(i, 0x1401, 0x1601, 0x300 + nid, [0x60FF0020])
             self._map(i, 0x1800, 0x1A00, 0x180 + nid, [0x60410010, 0x60640020, 0x60780010])

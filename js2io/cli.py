@@ -42,6 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "e.g. drive_fault:2@3000 (repeatable)")
     p.add_argument("--max-lost", type=int, default=10, help="consecutive lost TPDOs of one drive that abort (default 10)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--rt-priority", type=int, default=0, metavar="N",
+                   help="run the cycle loop with SCHED_FIFO priority N (Linux; root/CAP_SYS_NICE); 0 = off")
     return p
 
 
@@ -64,7 +66,9 @@ def _run(args) -> int:
     from .session import Session, open_log
     from .trials import TrialContext, expand_trial_names, load_trials_config, make_trials
 
+    from .rt import set_realtime_priority
     robot = load_robot(args.robot)
+    sched = set_realtime_priority(args.rt_priority)
     cfg_path = args.config or robot.trials_path
     if cfg_path is None:
         from .trials import default_trials_path
@@ -108,7 +112,7 @@ def _run(args) -> int:
                 group = CanopenDriveGroup(robot.drives, network, robot.eds_path, cycle_hz=cycle_hz,
                                           realtime=args.realtime)
         print(f"js2-acquire: {robot.name}, trials {', '.join(names)} -> {args.output} ({where}, "
-              f"{cycle_hz:g} Hz, {'real time' if args.realtime else 'lock-step'})", file=sys.stderr)
+              f"{cycle_hz:g} Hz, {'real time' if args.realtime else 'lock-step'}, {sched})", file=sys.stderr)
         group.open()
         writer = open_log(args.output, robot, group, cfg)
         session = Session(group, writer, trials, progress=not args.no_progress, max_consecutive_lost=args.max_lost)

@@ -83,12 +83,16 @@ def virtual_factory(robot, cycle_hz, realtime):
     return f
 
 
+RT_PRIO = 0
+
+
 def socketcand_factory(robot, cycle_hz, realtime):
     def f():
         import canopen
         from js2io.bus import open_bus
         from js2io.canopen_group import CanopenDriveGroup
-        sim = subprocess.Popen([sys.executable, "-m", "hil_sim.cli", "--port", "0", "--cycle-hz", str(cycle_hz)],
+        sim = subprocess.Popen([sys.executable, "-m", "hil_sim.cli", "--port", "0", "--cycle-hz", str(cycle_hz),
+                                "--rt-priority", str(RT_PRIO)],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT)
         port = None
         for _ in range(20):
@@ -124,7 +128,13 @@ def main() -> int:
     ap.add_argument("--rate", type=float, help="SYNC rate (default: 90 %% of the 1 Mbit/s bus limit)")
     ap.add_argument("--transport", choices=["virtual", "socketcand", "both"], default="both")
     ap.add_argument("--profile", action="store_true", help="cProfile the main thread in a lock-step run")
+    ap.add_argument("--rt-priority", type=int, default=0, metavar="N",
+                    help="SCHED_FIFO priority for master and simulator (Linux, root/CAP_SYS_NICE); 0 = off")
     args = ap.parse_args()
+    global RT_PRIO
+    RT_PRIO = args.rt_priority
+    from js2io.rt import set_realtime_priority
+    sched = set_realtime_priority(args.rt_priority)
     import logging
     logging.basicConfig(level=logging.ERROR)
     from js2io.bus import quiet_socketcand
@@ -136,7 +146,8 @@ def main() -> int:
     rate = args.rate or round(0.9 * lim)
     print(f"CAN bus limit, SYNC + 6 x RPDO(4 B) + 6 x TPDO(8 B) at 1 Mbit/s: {bits} bits/cycle worst-case stuffing "
           f"-> {lim:.0f} Hz ({bits_typ} bits without stuffing -> {lim_typ:.0f} Hz); 90 % = {0.9 * lim:.0f} Hz")
-    print(f"machine: {os.cpu_count()} CPUs; python {sys.version.split()[0]}")
+    print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} (other work on it slows us down); "
+          f"python {sys.version.split()[0]}; {sched}")
     transports = ["virtual", "socketcand"] if args.transport == "both" else [args.transport]
     fac = {"virtual": virtual_factory, "socketcand": socketcand_factory}
     if args.profile:

@@ -110,3 +110,18 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     assert "unknown trial 'bogus'" in capsys.readouterr().err
     assert main(["--trial", "static", "-o", str(tmp_path / "x.mcap"), "-i", "nosuchinterface", "-c", "x"]) == 2
     assert "cannot open the CAN bus" in capsys.readouterr().err
+
+
+def test_cli_names_the_silent_node(tmp_path, capsys):
+    """A bus without drives: the master says which node did not answer and what to check."""
+    from hil_sim.bus_hub import CanHub
+    from js2io.cli import main
+    hub = CanHub().start()
+    try:
+        rc = main(["--trial", "static", "-o", str(tmp_path / "x.mcap"), "-i", "socketcand", "-c", "js2",
+                   "--bus-arg", f"port={hub.port}", "--no-progress"])
+    finally:
+        hub.stop()
+    err = capsys.readouterr().err
+    assert rc == 2 and "node 1: no SDO answer" in err and "check that the drive" in err, err
+    assert not (tmp_path / "x.mcap").exists()
