@@ -15,6 +15,40 @@ def quiet_socketcand() -> None:
     logging.getLogger("can.interfaces.socketcand.socketcand").setLevel(logging.ERROR)
 
 
+def _first_line(text: str) -> str:
+    """python-can folds tracebacks into some messages; keep what precedes them."""
+    text = text.split("Traceback (most recent call last)")[0].strip()
+    return text.splitlines()[0] if text else ""
+
+
+class _OneLine(logging.Formatter):
+    """Library warnings as one line each (no tracebacks on the console; the log file records what matters)."""
+
+    def format(self, record):
+        msg = _first_line(record.getMessage())
+        return f"{self.prog}: {record.levelname.lower()}: {record.name}: {msg}"
+
+    def formatException(self, ei):   # noqa: N802 - logging API
+        return ""
+
+
+def console_logging(prog: str, level=logging.WARNING) -> None:
+    h = logging.StreamHandler()
+    f = _OneLine()
+    f.prog = prog
+    h.setFormatter(f)
+    root = logging.getLogger()
+    root.handlers[:] = [h]
+    root.setLevel(level)
+    quiet_socketcand()
+    import threading
+
+    def hook(args):   # a dying library thread (e.g. python-can's notifier on a lost connection): one line
+        logging.getLogger(prog).warning("thread %s stopped: %s: %s", args.thread.name if args.thread else "?",
+                                        args.exc_type.__name__, _first_line(str(args.exc_value)))
+    threading.excepthook = hook
+
+
 def _value(v: str):
     low = v.lower()
     if low in ("true", "yes", "on"):

@@ -49,6 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    from js2io.bus import console_logging
+    console_logging("js2-acquire")
     try:
         return _run(args)
     except Js2Error as e:

@@ -103,6 +103,8 @@ class Session:
         self.fb = fb
         self._log_feedback(fb)
         if self._bar is not None and fb.cycle % 50 == 0:
+            if self._bar.n + 50 >= self._bar.total:    # estimate too short: stretch rather than overflow
+                self._bar.total = int(self._bar.n * 1.05) + 100
             self._bar.update(50)
         if self.on_cycle is not None:
             self.on_cycle(self, fb)
@@ -201,9 +203,11 @@ class Session:
         try:
             try:
                 self._enable()
-                for trial in self.trials:
+                for k_trial, trial in enumerate(self.trials):
                     self.current_trial = trial.name
-                    if self._bar is not None:
+                    if self._bar is not None:   # re-estimate what is left, so the bar never overflows
+                        left = sum(t.estimate_s() for t in self.trials[k_trial:]) * 1.03 * self.g.cycle_hz
+                        self._bar.total = int(self._bar.n + left)
                         self._bar.set_description(trial.name)
                     self._event("trial_start", detail=type(trial).__doc__.strip().splitlines()[0])
                     status = "aborted"
@@ -231,20 +235,25 @@ class Session:
             except Js2Error:
                 raise
             except Exception as e:   # bus errors from python-can / canopen, and anything unexpected
-                res.aborted, res.reason = True, f"{type(e).__name__}: {e}"
+                import can
+                what = "bus error" if isinstance(e, (can.CanError, OSError)) else "internal error"
+                res.aborted, res.reason = True, f"{what}: {type(e).__name__}: {e}"
                 stop_how = "quick_stop"
                 if self.fb is not None:
-                    self._event("fault", detail=f"bus error: {type(e).__name__}: {e}")
+                    self._event("fault", detail=res.reason)
                     self._event("abort", detail=res.reason)
             self._stop(stop_how)
         finally:
             if self._bar is not None:
+                if not res.aborted:
+                    self._bar.total = self._bar.n
                 self._bar.close()
             res.cycles = (self.fb.cycle + 1) if self.fb is not None else 0
             res.sim_time_s = self.fb.t if self.fb is not None else 0.0
             res.lost = self.g.lost.tolist()
             res.max_abs_command = [round(float(x), 5) for x in self.max_cmd]
-            res.final_states = self.fb.states() if self.fb is not None else []
+            res.final_states = ([s if v else f"NO ANSWER (last seen {s})" for s, v in zip(self.fb.states(), self.fb.valid)]
+                                if self.fb is not None else [])
             res.wall_time_s = time.perf_counter() - t_wall
             try:
                 self.w.metadata("js2_acquire_summary", {

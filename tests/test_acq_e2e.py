@@ -188,3 +188,31 @@ def test_killed_writer_leaves_readable_log(tmp_path):
     assert log.truncated
     assert len(log.feedback.t) > 1000
     assert [e["kind"] for e in log.events][:1] == ["trial_start"]
+
+
+def test_simulator_process_killed_mid_trial(tmp_path):
+    """The far side vanishes (js2-sim SIGKILLed): the master notices (lost TPDOs / heartbeats / bus), stops safely,
+    and the log is complete with the reason."""
+    sim, port = _start_sim()
+    out = tmp_path / "gone.mcap"
+    acq = subprocess.Popen([str(BIN / "js2-acquire"), "-i", "socketcand", "-c", "js2", "--bus-arg", f"port={port}",
+                            "--trial", "velocity", "-o", str(out), "--no-progress"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        t_end = time.monotonic() + 60
+        while time.monotonic() < t_end and (not out.exists() or out.stat().st_size < 100_000):
+            time.sleep(0.05)
+        sim.kill()
+        so, se = acq.communicate(timeout=120)
+    finally:
+        if acq.poll() is None:
+            acq.kill()
+        sim.kill()
+        sim.wait()
+    assert acq.returncode == 1, so + se
+    assert "ABORTED" in so and "Traceback" not in se
+    log = read_log(out)
+    assert not log.truncated
+    kinds = [e["kind"] for e in log.events]
+    assert "abort" in kinds and "fault" in kinds
+    assert (~log.feedback.valid).any()
