@@ -129,8 +129,12 @@ def friction_mask(bp: BaseParameters, arm: ArmModel, offsets: bool = False) -> n
 def condition_number(Wb: np.ndarray, normalise: bool = True) -> float:
     """2-norm condition number of a stacked base regressor (columns scaled to unit norm when ``normalise``)."""
     A = Wb.reshape(-1, Wb.shape[-1])
+    G = A.T @ A                     # singular values of A = sqrt(eigenvalues of A^T A): cheaper than an SVD of A
     if normalise:
-        nrm = np.linalg.norm(A, axis=0)
-        A = A / np.where(nrm > 0, nrm, 1.0)
-    s = np.linalg.svd(A, compute_uv=False)
-    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+        d = np.sqrt(np.diag(G))
+        d = np.where(d > 0, d, 1.0)
+        G = G / np.outer(d, d)
+    ev = np.linalg.eigvalsh(G)
+    if ev[0] <= ev[-1] * 1e-15:
+        return float(np.sqrt(ev[-1] / max(ev[0], 0.0))) if ev[0] > 0 else float("inf")
+    return float(np.sqrt(ev[-1] / ev[0]))

@@ -142,9 +142,10 @@ def _progress(enabled: bool, desc: str):
 
 
 def load_logs(paths) -> list:
+    """Read the logs (``read_log``); items that are already ``Js2Log`` objects are used as they are."""
     logs = []
     for p in paths:
-        log = read_log(p)
+        log = p if hasattr(p, "feedback") and hasattr(p, "drives") else read_log(p)
         logs.append(log)
     return logs
 
@@ -186,7 +187,6 @@ def _regressor_rows(arm, bp, sig, idx, offsets, progress=None):
     margin = int(round(3 * sig.settings.trim * fs))
     out_W = np.empty((len(idx), arm.n, bp.n))
     out_v = np.empty((len(idx), arm.n))
-    pos = {int(k): i for i, k in enumerate(idx)}
     for a, b in sig.runs:
         inside = idx[(idx >= a) & (idx < b)]
         if len(inside) == 0:
@@ -195,12 +195,19 @@ def _regressor_rows(arm, bp, sig, idx, offsets, progress=None):
         q = sig.q_motor[lo:hi]
         dq = sig.dq_motor[lo:hi]
         ddq = np.gradient(dq, 1.0 / fs, axis=0)
-        W = build_regressor(arm, q, dq, ddq, offsets=offsets, progress=progress)
-        Wb = bp.project(W)
+        # built in chunks and projected on the base columns at once: memory ~ N x n x n_base, not N x n x n_std
+        Wb = np.empty((hi - lo, arm.n, bp.n))
+        step = 4096
+        chunks = range(0, hi - lo, step)
+        for c0 in (progress(chunks) if progress is not None else chunks):
+            c1 = min(c0 + step, hi - lo)
+            Wb[c0:c1] = bp.project(build_regressor(arm, q[c0:c1], dq[c0:c1], ddq[c0:c1], offsets=offsets,
+                                                   velocity_for_sign=None))
         Wf = sg._lp_runs(Wb.reshape(len(Wb), -1), sig.settings.fc_acceleration_hz, fs, sig.settings.order,
                          [(0, hi - lo)]).reshape(Wb.shape)
+        del Wb
         rel = inside - lo
-        where = np.array([pos[int(k)] for k in inside])
+        where = np.searchsorted(idx, inside)
         out_W[where] = Wf[rel]
         out_v[where] = dq[rel]
     return out_W, sig.tau[idx], out_v
@@ -214,7 +221,7 @@ def _row_weights(v, frac):
 
 def identify(paths, options: IdentifyOptions | None = None) -> Identification:
     opt = options or IdentifyOptions()
-    paths = [Path(p) for p in paths]
+    paths = [p if hasattr(p, "feedback") else Path(p) for p in paths]
     if not paths:
         raise IdentificationError("no log given")
     notes: list[str] = []
@@ -290,19 +297,19 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
         missing = [k + 1 for k in range(n) if not (np.isfinite(fc_[k]) and np.isfinite(fv_[k]))]
         if "velocity" not in spans:
             raise IdentificationError(
-                f"{', '.join(map(str, paths))}: no 'velocity' trial (constant-velocity test, eq. 5) in the input; the "
+                f"{', '.join(str(getattr(p, 'path', p)) for p in paths)}: no 'velocity' trial (constant-velocity test, eq. 5) in the input; the "
                 f"mixed method needs it for B and f_c. Record it (js2-acquire --trial velocity) or use "
                 f"--method simultaneous")
         if missing:
             raise IdentificationError(
-                f"{', '.join(map(str, paths))}: the 'velocity' trial has no usable steady segment for axis/axes "
+                f"{', '.join(str(getattr(p, 'path', p)) for p in paths)}: the 'velocity' trial has no usable steady segment for axis/axes "
                 f"{missing}; the mixed method needs B and f_c of every axis (or use --method simultaneous)")
     # 4. fitting data
     fit_names = [t for t in opt.fit_trials if t in spans]
     if not fit_names:
         have = sorted(spans) or ["none"]
         raise IdentificationError(
-            f"{', '.join(map(str, paths))}: no {' or '.join(repr(t) for t in opt.fit_trials)} trial for the inertial "
+            f"{', '.join(str(getattr(p, 'path', p)) for p in paths)}: no {' or '.join(repr(t) for t in opt.fit_trials)} trial for the inertial "
             f"fit (trials present: {', '.join(have)}); pass --fit-trials with one that is there")
     fitW, fitY, fitV = [], [], []
     val_parts = []
@@ -341,7 +348,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
     if not val_parts:
         k = int(round(len(W) * (1 - opt.holdout)))
         if k < 10 or len(W) - k < 10:
-            raise IdentificationError(f"{paths[0]}: too few samples ({len(W)}) to hold out a validation part")
+            raise IdentificationError(f"{logs[0].path}: too few samples ({len(W)}) to hold out a validation part")
         val_parts.append((W[k:], Y[k:], V[k:], f"last {opt.holdout:.0%} of the fit trial(s) (held out)"))
         W, Y, V = W[:k], Y[:k], V[:k]
         allw = [(sg_, ix) for sg_, ix in fit_where]
@@ -357,7 +364,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
             start = end
         notes.append(f"no validation trial: the last {opt.holdout:.0%} of the fitting data was held out for validation")
     if len(W) < 2 * bp.n:
-        raise IdentificationError(f"{paths[0]}: only {len(W)} usable samples in the fit trial(s)")
+        raise IdentificationError(f"{logs[0].path}: only {len(W)} usable samples in the fit trial(s)")
     wts = _row_weights(V, opt.v_min_fraction)
     cond = condition_number(W)
     cond_raw = condition_number(W, normalise=False)
@@ -373,7 +380,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
         friction_seq[i] = {"B": fv_, "fc": fc_}.get(kind, np.full(n, 0.0))[k]
     run_mixed = np.all(np.isfinite(friction_seq[fr])) if len(fr) else True
     if opt.method == "mixed" and not run_mixed:
-        raise IdentificationError(f"{paths[0]}: friction of some axes missing from the sequential tests")
+        raise IdentificationError(f"{logs[0].path}: friction of some axes missing from the sequential tests")
     todo = (["mixed"] if run_mixed and np.isfinite(fv_).all() else []) + ["simultaneous"]
     for name in todo:
         if name == "mixed":

@@ -1,6 +1,12 @@
 """``js2-identify LOG... -o OUTDIR``: the dynamic model of an arm from its js2 logs (thin CLI over the pipeline)."""
 from __future__ import annotations
 
+import os
+
+# Single-threaded BLAS: the matrices here are small (~50 parameters) and OpenBLAS's spinning worker threads make a
+# loaded 2-core machine several times slower. Set before numpy is first imported; a user's own setting wins.
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
 import argparse
 import sys
 from pathlib import Path
