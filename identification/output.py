@@ -68,6 +68,14 @@ def model_dict(ident) -> dict:
             if ax.per_direction:
                 pdirs[arm.joints[m]] = {k: {"viscous": v[0], "coulomb": v[1]} for k, v in ax.per_direction.items()}
         d["friction"]["per_direction"] = pdirs
+    if ident.static_per_direction:
+        d["friction"]["static_per_direction"] = {
+            arm.joints[m]: {"positive": v["+"], "negative": v["-"], "positive_std": _l([v["+_std"]])[0],
+                            "negative_std": _l([v["-_std"]])[0]}
+            for m, v in sorted(ident.static_per_direction.items())}
+        d["friction"]["static_per_direction_note"] = (
+            "f_s+ = tau+ - G(pose), f_s- = G(pose) - tau- with G from the identified model (eq. 2); "
+            "'static' is eq. 3's (tau+ - tau-)/2, their mean")
     if ident.static is not None:
         d["static_test"] = {"gravity_at_poses": ident.static.gravity_,
                             "pairs_per_motor": [int(x) for x in ident.static.pairs_]}

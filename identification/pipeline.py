@@ -90,6 +90,7 @@ class Identification:
     physical: PhysicalConsistencyFit | None
     fit_data: dict = field(default_factory=dict)
     val_data: dict = field(default_factory=dict)
+    static_per_direction: dict | None = None   # motor -> {"+": f_s+, "-": f_s-, "+_std", "-_std"}
 
     @property
     def model(self) -> MethodResult:
@@ -432,6 +433,11 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
                                                 fixed_std)
         except np.linalg.LinAlgError as exc:
             notes.append(f"physically consistent fit failed ({exc})")
+    # static friction per direction: with the identified gravity at each static pose (eq. 2 with G known),
+    # f_s+ = tau+ - G and f_s- = G - tau-; eq. 3 alone gives only their mean
+    static_dir = None
+    if static is not None and static.gravity_:
+        static_dir = static_per_direction(arm, bp, methods[chosen].beta, static, opt.offsets)
     # 7. validation
     validation = validate(methods, chosen, val_parts, phys, bp)
     fit_data = {"W": W, "Y": Y, "V": V, "weights": wts, "where": fit_where}
@@ -452,7 +458,31 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
                           friction_viscous=friction_out[4], friction_viscous_std=friction_out[5], methods=methods,
                           chosen=chosen, condition_number=cond, condition_number_raw=cond_raw, n_fit_samples=len(W),
                           validation=validation, physical=phys, fit_data=fit_data,
-                          val_data={"parts": val_parts, "where": val_where})
+                          val_data={"parts": val_parts, "where": val_where}, static_per_direction=static_dir)
+
+
+def static_per_direction(arm, bp, beta, static, offsets) -> dict:
+    """f_s per direction from the breakaway torques and the identified gravity at each pose (motor -> values)."""
+    out = {}
+    poses = np.array([g["pose"] for g in static.gravity_], float)
+    qm = (poses - arm.joint_offset) @ arm.Kinv.T
+    z = np.zeros_like(qm)
+    Wg = bp.project(build_regressor(arm, qm, z, z, offsets=offsets))
+    G = Wg @ beta                          # (n_records, n): gravity (+ offsets) at each pose, motor side
+    per = {}
+    for r, g in enumerate(static.gravity_):
+        m = g["motor"]
+        per.setdefault(m, {"+": [], "-": []})
+        per[m]["+"].append(g["tau_plus"] - G[r, m])
+        per[m]["-"].append(G[r, m] - g["tau_minus"])
+    for m, d in per.items():
+        ent = {}
+        for k in ("+", "-"):
+            v = np.asarray(d[k])
+            ent[k] = float(v.mean())
+            ent[k + "_std"] = float(v.std(ddof=1) / np.sqrt(len(v))) if len(v) > 1 else float("nan")
+        out[int(m)] = ent
+    return out
 
 
 def rms_nrms(pred: np.ndarray, meas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

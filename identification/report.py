@@ -133,7 +133,9 @@ def write_report(ident, outdir: Path, verdict: dict | None = None) -> Path:
     figs.append(("Validation", _png(fig_validation(ident))))
     arm = ident.arm
     ja, ja_sd, alone = ident.motor_inertia()
-    fr_rows = [[j, _f(ident.friction_static[k]), _f(ident.friction_static_std[k], 2), _f(ident.friction_coulomb[k]),
+    sd = ident.static_per_direction or {}
+    fr_rows = [[j, _f(ident.friction_static[k]) + (f" (+{_f(sd[k]['+'], 3)} / −{_f(sd[k]['-'], 3)})" if k in sd else ""),
+                _f(ident.friction_static_std[k], 2), _f(ident.friction_coulomb[k]),
                 _f(ident.friction_coulomb_std[k], 2), _f(ident.friction_viscous[k]), _f(ident.friction_viscous_std[k], 2),
                 _f(ja[k]), "yes" if alone[k] else "regrouped (value from the consistent fit)"]
                for k, j in enumerate(arm.joints)]
@@ -179,7 +181,7 @@ def write_report(ident, outdir: Path, verdict: dict | None = None) -> Path:
     if ident.notes:
         parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in ident.notes) + "</ul>")
     parts.append("<h2>Drive parameters (motor side)</h2>" + _table(
-        ["axis", "f_s (N m)", "std", "f_c (N m)", "std", "B (N m s/rad)", "std", "J_a (kg m²)", "J_a separately"],
+        ["axis", "f_s (N m) (per direction)", "std", "f_c (N m)", "std", "B (N m s/rad)", "std", "J_a (kg m²)", "J_a separately"],
         fr_rows))
     parts.append("<h2>Validation</h2>" + _table(val_head, val_rows))
     for title, b64 in figs:
