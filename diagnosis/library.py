@@ -1,0 +1,369 @@
+"""Candidate physics terms: what a model of eq. 1 may leave out, each as columns that explain a torque residual.
+
+One term per effect kind the simulator can hide (``hil_sim.effects``: same names, same parameters and units), so a
+diagnosis reads as "the model lacks <kind> on joint <j> with <parameters>" and can be simulated back.
+A term is a small feature library in the PySINDy sense: ``columns(rd, j, h)`` returns the motor-side torque each unit
+coefficient would add, shape (N, n, k), for joint/motor ``j`` and a hyper-parameter ``h`` from ``grid(rd, j)``
+(a Stribeck velocity, a cogging period count, a thermal time constant, a backlash width); the search fits the
+coefficients by least squares and turns them into the effect's parameters with ``effect(...)``.
+
+Residual convention: r = tau_measured - tau_model (motor side, N*m). Columns are signed so that the fitted
+coefficient of a present effect is positive.
+
+| kind | columns (motor i, joint j) | coefficient -> parameter |
+| --- | --- | --- |
+| stribeck | sgn(w_i) exp(-(w_i/v_s)^2) | f_s - f_c (N*m); velocity = v_s (rad/s motor) |
+| cogging | sin(p theta_i), cos(p theta_i) | amplitude, phase; periods_per_rev = p |
+| payload_change | K^T Y_hand[m, mx, my, mz] | mass (kg), com = (m c)/m (m, hand link frame) |
+| thermal_drift | H_tau(I_i^2) (B w_i + f_c sgn w_i) | friction_per_kelvin with heating 1 K/A^2; time_constant = tau |
+| load_dependent_friction | sgn(w_i) |(K^T tau_rigid)_i| | coefficient mu (-) |
+| asymmetric_friction | [w_i > 0], -[w_i < 0] | f_c+ - f_c, f_c- - f_c -> negative_scale |
+| joint_elasticity | -K^T (d tau/d q_j tau_j + M e_j d2 tau_j/dt2) | 1/k (rad/(N*m)) -> stiffness k |
+| backlash | impulse response h(lag) at the instants the gear has travelled b past each reversal of tau_j; -K^T d tau/d q_j sgn(tau_j)/2 | width b (rad joint side) |
+
+w = motor speed, theta = motor angle, tau_rigid = M(q) q_dd + h + g of the model (joint side), H_tau a first-order
+low-pass with time constant tau (the winding's thermal lag).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from scipy.signal import lfilter
+
+from .residual import ResidualData
+
+
+@dataclass
+class Fitted:
+    """One fitted candidate: term kind, joint, hyper-parameter, coefficients (with std) and the effect it implies."""
+    kind: str
+    joint: int
+    hyper: float | None
+    coef: np.ndarray
+    coef_std: np.ndarray
+    effect: dict
+    summary: str
+    plausible: bool
+    why_not: str = ""
+
+
+class Term:
+    kind = ""
+    band = "low"          # 'low': compared in the torque's 7 Hz band; 'wide': unfiltered (ripple)
+    per_joint = True      # one instance per joint/motor
+    hyper_name = ""
+
+    def grid(self, rd: ResidualData, j: int) -> list:
+        return [None]
+
+    def columns(self, rd: ResidualData, j: int, h) -> np.ndarray:
+        raise NotImplementedError
+
+    def columns_low(self, rd: ResidualData, j: int, h) -> np.ndarray:
+        """The columns filtered like the torque (parallel filtering), only where the term acts."""
+        cols = self.columns(rd, j, h)
+        motors = self.motors(rd, j)
+        cols[:, motors] = rd.lowpass(np.ascontiguousarray(cols[:, motors]))
+        return cols
+
+    def motors(self, rd: ResidualData, j: int) -> np.ndarray:
+        """Motors whose torque the term can change (where it is fitted and scored)."""
+        return np.array([j])
+
+    def effect(self, rd: ResidualData, j: int, h, coef: np.ndarray, std: np.ndarray) -> tuple[dict, str, bool, str]:
+        raise NotImplementedError
+
+
+def _moving(rd: ResidualData, i: int) -> np.ndarray:
+    return np.nan_to_num(rd.dq_motor[:, i])
+
+
+def _sgn(x):
+    return np.sign(x)
+
+
+class Stribeck(Term):
+    kind, hyper_name = "stribeck", "velocity"
+
+    def grid(self, rd, j):
+        lo = 2.0 * rd.extra.get("min_speed", 1.0)
+        return list(np.geomspace(lo, 30 * lo, 13))
+
+    def columns(self, rd, j, h):
+        w = _moving(rd, j)
+        col = np.zeros((len(w), rd.n, 1))
+        col[:, j, 0] = _sgn(w) * np.exp(-(np.abs(w) / h) ** 2)
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        fc = float(rd.extra["model"].friction_coulomb[j])
+        lowest = h <= self.grid(rd, j)[0] * 1.0001
+        ok = coef[0] > 3 * std[0] and not lowest
+        why = ("" if ok else "Stribeck velocity at the lowest speed tried: what it fits is the friction step at "
+               "reversals, not a resolved Stribeck curve" if lowest else "fitted low-speed excess is not positive")
+        return ({"kind": self.kind, "joints": [j], "velocity": float(h), "shape": 2.0},
+                f"friction rises below ~{h:.2g} rad/s (motor): static friction {fc + coef[0]:.4g} N*m against "
+                f"Coulomb {fc:.4g} N*m", ok, why)
+
+
+class Cogging(Term):
+    kind, hyper_name, band = "cogging", "periods_per_rev", "wide"
+
+    def grid(self, rd, j):
+        return list(range(1, 49))
+
+    def columns(self, rd, j, h):
+        th = np.nan_to_num(rd.q_motor[:, j])
+        col = np.zeros((len(th), rd.n, 2))
+        col[:, j, 0] = np.sin(h * th)
+        col[:, j, 1] = np.cos(h * th)
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        amp = float(np.hypot(coef[0], coef[1]))
+        phase = float(np.arctan2(coef[1], coef[0]))
+        amp_std = float(np.hypot(std[0], std[1]))
+        ok = amp > 4 * amp_std
+        return ({"kind": self.kind, "joints": [j], "amplitude": amp, "periods_per_rev": int(h), "phase": phase},
+                f"torque ripple {amp:.3g} N*m, {int(h)} periods per motor revolution", ok,
+                "" if ok else "ripple amplitude not above its uncertainty")
+
+
+class PayloadChange(Term):
+    kind, per_joint, hyper_name = "payload_change", False, ""
+
+    def motors(self, rd, j):
+        return np.arange(rd.n)
+
+    def columns(self, rd, j, h):
+        hand = rd.n - 1                              # the link moved by the last joint: the hand
+        cols = rd.W_rigid_motor[:, :, 10 * hand:10 * hand + 4]   # m, mx, my, mz of the hand link
+        return cols
+
+    def effect(self, rd, j, h, coef, std):
+        m = float(coef[0])
+        com = (coef[1:4] / m).tolist() if abs(m) > 1e-6 else [0.0, 0.0, 0.0]
+        ok = abs(m) > 3 * std[0] and abs(m) < 20 and float(np.linalg.norm(com)) < 1.0
+        return ({"kind": self.kind, "joints": [rd.n - 1], "mass": m, "com": [float(c) for c in com]},
+                f"the hand carries {m:+.3g} kg more than the model, centre of mass at "
+                f"[{', '.join(f'{c:.3g}' for c in com)}] m (hand frame)", ok,
+                "" if ok else "mass change not significant or implausible")
+
+
+class ThermalDrift(Term):
+    kind, hyper_name = "thermal_drift", "time_constant"
+
+    def grid(self, rd, j):
+        span = float(rd.t[-1] - rd.t[0])
+        return [tc for tc in (5.0, 10.0, 20.0, 40.0, 80.0, 160.0, 320.0) if tc < 4 * span] or [span]
+
+    def columns(self, rd, j, h):
+        i2 = np.nan_to_num(rd.motor_current[:, j]) ** 2
+        a = np.exp(-1.0 / (rd.fs * h))
+        heat = lfilter([1 - a], [1, -a], i2)          # K per (K/A^2): the temperature rise with heating = 1
+        col = np.zeros((len(i2), rd.n, 1))
+        col[:, j, 0] = heat * np.nan_to_num(rd.friction_pred[:, j])
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        ok = abs(coef[0]) > 3 * std[0]
+        return ({"kind": self.kind, "joints": [j], "heating": 1.0, "time_constant": float(h),
+                 "friction_per_kelvin": float(coef[0])},
+                f"friction changes by {coef[0]:+.3g} per A^2 of (first-order, {h:g} s) heating: it drifts as the "
+                f"motor warms", ok, "" if ok else "drift not significant")
+
+
+class LoadDependentFriction(Term):
+    kind = "load_dependent_friction"
+
+    def columns(self, rd, j, h):
+        col = np.zeros((len(rd.t), rd.n, 1))
+        col[:, j, 0] = _sgn(_moving(rd, j)) * np.abs(np.nan_to_num(rd.tau_rigid_motor[:, j]))
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        ok = coef[0] > 3 * std[0]
+        return ({"kind": self.kind, "joints": [j], "coefficient": float(coef[0])},
+                f"friction grows by {coef[0]:.3g} N*m per N*m of transmitted load", ok,
+                "" if ok else "load coefficient not positive/significant")
+
+
+class AsymmetricFriction(Term):
+    kind = "asymmetric_friction"
+
+    def columns(self, rd, j, h):
+        w = _moving(rd, j)
+        col = np.zeros((len(w), rd.n, 2))
+        col[:, j, 0] = (w > 0).astype(float)
+        col[:, j, 1] = -(w < 0).astype(float)
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        fc = float(rd.extra["model"].friction_coulomb[j])
+        f_pos, f_neg = fc + coef[0], fc + coef[1]
+        scale = f_neg / f_pos if f_pos > 0 else float("nan")
+        diff_std = float(np.hypot(std[0], std[1]))
+        ok = f_pos > 0 and f_neg > 0 and abs(coef[0] - coef[1]) > 3 * diff_std
+        return ({"kind": self.kind, "joints": [j], "negative_scale": float(scale)},
+                f"Coulomb friction {f_pos:.4g} N*m turning forward, {f_neg:.4g} N*m backward", ok,
+                "" if ok else "directions do not differ significantly")
+
+
+def _rnea_dq(rd: ResidualData, j: int, eps: float = 1e-6) -> np.ndarray:
+    """d tau_rigid / d q_j (joint side, (N, n)) by central differences of pinocchio RNEA, cached per joint."""
+    cache = rd.extra.setdefault("dtau_dq", {})
+    if j in cache:
+        return cache[j]
+    arm = rd.arm
+    model, data = arm.model, arm.model.createData()
+    K = rd.K
+    q = np.nan_to_num(rd.q_joint)
+    dq = np.nan_to_num(rd.dq_motor) @ K.T
+    ddq = np.nan_to_num(rd.ddq_motor) @ K.T
+    iv = arm.idx_v
+    out = np.zeros_like(q)
+    qp = np.zeros(model.nq)
+    vp = np.zeros(model.nv)
+    ap = np.zeros(model.nv)
+    for s in range(len(q)):
+        qp[iv] = q[s]
+        vp[iv] = dq[s]
+        ap[iv] = ddq[s]
+        qp[iv[j]] += eps
+        hi = pin.rnea(model, data, qp, vp, ap)[iv]
+        qp[iv[j]] -= 2 * eps
+        lo = pin.rnea(model, data, qp, vp, ap)[iv]
+        out[s] = (hi - lo) / (2 * eps)
+    cache[j] = out
+    return out
+
+
+def _mass_column(rd: ResidualData, j: int) -> np.ndarray:
+    """M(q) e_j (joint side, (N, n)); M(q) by pinocchio CRBA, computed once per recording."""
+    M_all = rd.extra.get("M")
+    if M_all is None:
+        arm = rd.arm
+        model, data = arm.model, arm.model.createData()
+        q = np.nan_to_num(rd.q_joint)
+        iv = arm.idx_v
+        qp = np.zeros(model.nq)
+        Mp = np.empty((len(q), model.nv, model.nv))
+        for s in range(len(q)):
+            qp[iv] = q[s]
+            Mp[s] = pin.crba(model, data, qp)
+        Mp = np.triu(Mp) + np.swapaxes(np.triu(Mp, 1), 1, 2)   # CRBA fills the upper triangle: mirror it
+        M_all = Mp[:, iv][:, :, iv]                              # pinocchio order -> drive order
+        rd.extra["M"] = M_all
+    return M_all[:, :, j]
+
+
+class JointElasticity(Term):
+    kind, per_joint = "joint_elasticity", True
+
+    def motors(self, rd, j):
+        return np.arange(rd.n)          # M(q) couples the joints: every motor may feel it
+
+    def columns(self, rd, j, h):
+        tau_j = np.nan_to_num(rd.tau_rigid_joint[:, j])
+        dt = 1.0 / rd.fs
+        tau_dd = np.gradient(np.gradient(tau_j, dt), dt)
+        joint_side = _rnea_dq(rd, j) * tau_j[:, None] + _mass_column(rd, j) * tau_dd[:, None]
+        col = np.zeros((len(tau_j), rd.n, 1))
+        col[:, :, 0] = -(joint_side @ rd.K)       # motor side: K^T tau_joint, row-wise
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        ok = coef[0] > 3 * std[0]
+        k = 1.0 / coef[0] if coef[0] > 0 else float("inf")
+        return ({"kind": self.kind, "joints": [j], "stiffness": float(k)},
+                f"joint {rd.joints[j]} is elastic: stiffness about {k:.3g} N*m/rad (link lags the gear by tau/k)",
+                ok, "" if ok else "compliance not positive/significant")
+
+
+class Backlash(Term):
+    """Lost motion of width b (joint side) in joint j's gear.
+
+    When the torque the gear transmits to the link changes sign, the gear crosses the gap with the link let go
+    (the link coasts on at its speed); once the gear has moved b relative to it the flanks meet again and the impact rings through the drive's loop. The term models
+    that as an event-locked response: events at the instants the gear has travelled ``b`` since each sign change of
+    the transmitted torque (b = the hyper-parameter), each event adding the same impulse response ``h`` (``n_lags``
+    taps of ``lag_s`` s, fitted by least squares, signed by the new torque's direction) to the motors of joint j
+    (K^T e_j). A second column carries the static *flank* offset: the link rests b/2 behind the gear in the
+    direction of the transmitted torque (link = gear - sgn(tau_j) b/2), so the rigid-body torque is off by
+    d tau/d q_j (-sgn(tau_j) b/2) — its coefficient is b itself.
+    """
+    kind, per_joint, hyper_name = "backlash", True, "width"
+    n_lags, lag_s = 8, 0.025
+
+    def motors(self, rd, j):
+        return np.arange(rd.n)
+
+    def grid(self, rd, j):
+        return list(np.geomspace(0.004, 0.12, 11))
+
+    def _parts(self, rd, j, h):
+        tau_j = np.nan_to_num(rd.tau_rigid_joint[:, j])
+        s = _sgn(tau_j)
+        q_j = np.nan_to_num(rd.q_joint[:, j])
+        N = len(s)
+        flips = np.flatnonzero((s[1:] != s[:-1]) & (s[1:] != 0)) + 1
+        events = []
+        window = np.zeros(N)
+        dq_j = np.nan_to_num(rd.dq_motor) @ rd.K[j, :]
+        for k0, k1 in zip(flips, list(flips[1:]) + [N]):
+            # the released link coasts on at the speed it had; the gap closes by the gear's travel relative to it
+            coast = dq_j[k0] * (rd.t[k0:k1] - rd.t[k0])
+            travel = np.abs(q_j[k0:k1] - q_j[k0] - coast)
+            hit = np.flatnonzero(travel >= h)
+            end = k0 + (int(hit[0]) if len(hit) else k1 - k0)
+            window[k0:end] = 1.0
+            if len(hit):
+                events.append((end, s[k0]))
+        step = max(1, int(round(self.lag_s * rd.fs)))
+        train = np.zeros(N)
+        for k, sign in events:
+            train[k:k + step] += sign
+        direction = rd.K[j, :]                     # motor side of a joint-j torque: K^T e_j
+        col = np.zeros((N, rd.n, 2 + self.n_lags))
+        flank = _rnea_dq(rd, j) * (-0.5 * s)[:, None]
+        col[:, :, 0] = np.nan_to_num(flank) @ rd.K
+        col[:, :, 1] = -(tau_j * window)[:, None] * direction[None, :]     # the link's torque, not carried in the gap
+        rd.extra.setdefault("backlash_events", {})[(j, float(h))] = len(events)
+        return col, train, step, direction
+
+    def columns(self, rd, j, h):
+        col, train, step, direction = self._parts(rd, j, h)
+        for ell in range(self.n_lags):
+            col[ell * step:, :, 2 + ell] = train[:len(train) - ell * step, None] * direction[None, :]
+        return col
+
+    def columns_low(self, rd, j, h):
+        # the filter is linear and time-invariant: the filtered lag columns are shifts of one filtered train
+        col, train, step, direction = self._parts(rd, j, h)
+        col[:, :, :2] = rd.lowpass(col[:, :, :2])
+        f = rd.lowpass(train[:, None])[:, 0]
+        for ell in range(self.n_lags):
+            col[ell * step:, :, 2 + ell] = f[:len(f) - ell * step, None] * direction[None, :]
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        flank_b = float(coef[0])
+        kernel = coef[1:]
+        k_snr = float(np.sqrt(np.sum((kernel / np.where(std[1:] > 0, std[1:], np.inf)) ** 2) / len(kernel)))
+        n_ev = rd.extra.get("backlash_events", {}).get((j, float(h)), 0)
+        flank_ok = flank_b > 3 * std[0] and 0 < flank_b < 0.3
+        impact_ok = k_snr > 3 and n_ev >= 4
+        ok = impact_ok or flank_ok
+        width = float(h) if impact_ok else flank_b
+        how = (f"impacts {n_ev} times after the gear travels {h:.3g} rad past a torque reversal" if impact_ok
+               else "from the flank offset")
+        return ({"kind": self.kind, "joints": [j], "width": width},
+                f"joint {rd.joints[j]} has lost motion: backlash about {width:.3g} rad (joint side), {how}", ok,
+                "" if ok else "no impact response after torque reversals and no flank offset")
+
+
+LIBRARY: tuple[Term, ...] = (Stribeck(), Cogging(), PayloadChange(), ThermalDrift(), LoadDependentFriction(),
+                             AsymmetricFriction(), JointElasticity(), Backlash())
+KINDS = tuple(t.kind for t in LIBRARY)

@@ -1,0 +1,163 @@
+"""Diagnosis outputs in OUTDIR: ``diagnosis.json``, ``model_diagnosed.yaml`` (model.yaml + ``unmodelled:``),
+``effects.yaml`` (the found effects in ``hil_sim`` format) and ``report.html`` (figures inline)."""
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .run import DiagnosisResult
+
+FRICTION_KINDS = {"stribeck", "asymmetric_friction", "thermal_drift", "load_dependent_friction"}
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _png(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=85, bbox_inches="tight")
+    _plt().close(fig)
+    return base64.b64encode(buf.getvalue()).decode()
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        return None if not np.isfinite(x) else float(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def fig_rms(res: DiagnosisResult):
+    plt = _plt()
+    d = res.to_dict()["holdout_rms"]
+    n = len(d["before"])
+    fig, ax = plt.subplots(figsize=(7, 3))
+    x = np.arange(n)
+    ax.bar(x - 0.2, np.asarray(d["before"], float) * 1e3, 0.4, label="model")
+    ax.bar(x + 0.2, np.asarray(d["after"], float) * 1e3, 0.4, label="model + found terms")
+    ax.set_xticks(x, [f"motor {i + 1}" for i in range(n)])
+    ax.set_ylabel("held-out residual RMS (mN m)")
+    ax.set_title("Residual on data the terms were not fitted on")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def fig_finding(res: DiagnosisResult, k: int):
+    """Held-out torque of the finding's main motor (measured, model, model + terms) and the residual against the
+    finding's natural axis, before and after."""
+    plt = _plt()
+    rd = res.rd
+    sc = res.accepted[k]
+    f = sc.fitted
+    i = int(f.effect["joints"][0]) if f.kind != "payload_change" else int(np.argmax(sc.rms_before - sc.rms_after))
+    rows = np.flatnonzero(rd.holdout_rows & rd.mask[:, i])
+    corr = res.search.predict(rd, sc.band)
+    meas = rd.tau_meas if sc.band == "low" else rd.tau_meas_raw
+    pred = rd.tau_pred if sc.band == "low" else rd.tau_pred_raw
+    fig, axs = plt.subplots(1, 2, figsize=(12, 3.4))
+    if len(rows):
+        sl = rows[: int(min(len(rows), 6 * rd.fs))]
+        t = rd.t[sl]
+        axs[0].plot(t, meas[sl, i] * 1e3, "k.", ms=1.5, label="measured")
+        axs[0].plot(t, pred[sl, i] * 1e3, "C0-", lw=1, label="model")
+        axs[0].plot(t, (pred[sl, i] + corr[sl, i]) * 1e3, "C3-", lw=1, label="model + found terms")
+        axs[0].set_xlabel("t (s), held-out data")
+        axs[0].set_ylabel(f"motor {i + 1} torque (mN m)")
+        axs[0].legend(fontsize=7)
+    r0 = (meas - pred)[rows, i] * 1e3
+    r1 = (meas - pred - corr)[rows, i] * 1e3
+    if f.kind == "cogging":
+        x = np.mod(rd.q_motor[rows, i] * f.hyper, 2 * np.pi)
+        xl = f"motor angle x {int(f.hyper)} mod 2 pi (rad)"
+    elif f.kind == "thermal_drift":
+        x, xl = rd.t[rows], "time (s)"
+    elif f.kind in FRICTION_KINDS:
+        x, xl = rd.dq_motor[rows, i], "motor speed (rad/s)"
+    else:
+        x, xl = rd.tau_rigid_joint[rows, int(f.effect["joints"][0])], "model joint torque (N m)"
+    axs[1].plot(x, r0, ".", ms=1.5, alpha=0.5, label="residual, model")
+    axs[1].plot(x, r1, ".", ms=1.5, alpha=0.5, label="residual, model + found terms")
+    axs[1].set_xlabel(xl)
+    axs[1].set_ylabel("residual (mN m)")
+    axs[1].legend(fontsize=7, markerscale=5)
+    fig.suptitle(f"{f.kind} on {rd.joints[f.effect['joints'][0]]}: {f.summary}", fontsize=9)
+    return fig
+
+
+def _table(headers, rows) -> str:
+    h = "".join(f"<th>{html.escape(str(x))}</th>" for x in headers)
+    b = "".join("<tr>" + "".join(f"<td>{html.escape(str(x))}</td>" for x in r) + "</tr>" for r in rows)
+    return f"<table><tr>{h}</tr>{b}</table>"
+
+
+def _g(x, p=3):
+    return "–" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{p}g}"
+
+
+def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    d = _jsonable(res.to_dict())
+    paths = {"json": out / "diagnosis.json", "model": out / "model_diagnosed.yaml", "effects": out / "effects.yaml",
+             "report": out / "report.html"}
+    paths["json"].write_text(json.dumps(d, indent=1))
+    paths["model"].write_text(yaml.safe_dump(_jsonable(res.diagnosed_model()), sort_keys=False))
+    if res.model.urdf_path is not None and res.model.urdf_path.is_file():
+        dst = out / res.model.urdf_path.name
+        if dst.resolve() != res.model.urdf_path.resolve():
+            shutil.copyfile(res.model.urdf_path, dst)
+    paths["effects"].write_text("# effects the diagnosis found; simulate them with hil_sim (sim_truth.yaml "
+                                "`effects:` or Plant(effects=...))\n"
+                                + yaml.safe_dump({"effects": _jsonable(res.sim_effects())}, sort_keys=False))
+    figs = [("Held-out residual per motor", _png(fig_rms(res)))]
+    for k in range(len(res.accepted)):
+        figs.append((f"Finding {k + 1}", _png(fig_finding(res, k))))
+    rows = [[f["kind"], f["joint"], _g(f["hyper"]), f"{f['holdout_gain']:.1%}", f"{f['fit_gain']:.1%}",
+             f["summary"]] for f in d["findings"]]
+    cand = [[c["kind"], c["joint"], _g(c["hyper"]), f"{c['holdout_gain_all']:.1%}", f"{c['holdout_gain']:.1%}",
+             f"{c['fit_gain']:.1%}", "yes" if c["plausible"] else f"no: {c['why_not']}"] for c in d["candidates_step1"]]
+    loc_rows = [[f"motor {m['motor'] + 1}", m["joint"], _g(m["holdout_rms_before"]), _g(m["holdout_rms_after"]),
+                 f"{m['holdout_drop']:.0%}" if m["holdout_drop"] is not None else "–", m["worst_regime"] or "–",
+                 "yes" if m["flagged"] else ""] for m in d["location"]["motors"]]
+    body = [f"<h1>js2 diagnosis</h1><p><b>Model</b> {html.escape(d['model'])}<br><b>Recording</b> "
+            f"{html.escape(d['recording'])}<br><b>Split</b> {html.escape(d['split'])}</p>",
+            f"<h2>Verdict</h2><p>{html.escape(d['verdict'])}</p>",
+            f"<h2>Where</h2><p>{html.escape(d['location']['text'])}</p>",
+            _table(["motor", "joint", "held-out RMS before (N m)", "after", "drop", "largest in", "mismatch"],
+                   loc_rows),
+            "<h2>What was found</h2>" + (_table(["kind", "joint", "hyper-parameter", "held-out gain", "fit gain",
+                                                 "what it means"], rows) if rows else "<p>nothing</p>"),
+            "<h2>Candidates tried (first step, best first)</h2>",
+            _table(["kind", "joint", "hyper", "held-out gain (all motors)", "held-out gain (its motors)",
+                    "fit gain", "plausible"], cand)]
+    for title, png in figs:
+        body.append(f"<h2>{html.escape(title)}</h2><img src='data:image/png;base64,{png}'>")
+    if d["notes"]:
+        body.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(str(n))}</li>" for n in d["notes"]) + "</ul>")
+    style = ("<style>body{font-family:sans-serif;max-width:1200px;margin:auto}table{border-collapse:collapse}"
+             "td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px}</style>")
+    paths["report"].write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>js2 diagnosis</title>"
+                               f"{style}</head><body>{''.join(body)}</body></html>")
+    return paths
