@@ -424,6 +424,9 @@ class Plant:
             return
         key = tau.tobytes()
         if key != self._tau_key:
+            if not np.all(np.isfinite(tau)):
+                raise ValueError(f"tau_motor must be finite, got {tau.tolist()}: a controller produced NaN/inf "
+                                 "(check its gains and inputs); the plant was not stepped")
             self._tau_j = None
             self._tau = tau.copy()
             self._tau_key = key

@@ -88,3 +88,18 @@ def test_every_documented_effect_builds_with_its_required_parameters():
         plant.reset()
         plant.step(plant.gravity_torque(), 0.01)
         assert np.all(np.isfinite(plant.q_joint))
+
+
+def test_non_finite_torque_is_refused_and_state_kept():
+    import numpy as np
+    import pytest
+
+    from hil_sim.plant import Plant
+    from js2spec.robot import load_robot
+
+    plant = Plant(load_robot("js2"), seed=0)
+    plant.reset()
+    q0 = plant.q_motor.copy()
+    with pytest.raises(ValueError, match="finite"):
+        plant.step(np.array([0.0, np.nan, 0.0, 0.0, 0.0, 0.0]), 0.002)
+    assert np.array_equal(plant.q_motor, q0) and np.all(np.isfinite(plant.dq_motor))
