@@ -274,6 +274,10 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
         if recs:
             static = StaticFrictionTest(n).fit(recs)
             fs_, fs_sd = static.static_, static.static_std_
+            for r in static.rejected_:
+                where = f"t = {r.t:.3f} s" if r.direction else "pose"
+                notes.append(f"static test: motor {r.motor + 1} at pose {list(r.pose)} ({where}) left out of eq. 3: "
+                             f"{r.rejected}")
             nb = sum(r.from_event for r in recs)
             if nb < len(recs):
                 notes.append(f"static test: {len(recs) - nb} of {len(recs)} breakaways detected from the data "

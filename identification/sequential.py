@@ -30,6 +30,7 @@ class Breakaway:
     pose: tuple           # joint angles (rad), rounded, identifies the pose
     t: float = 0.0
     from_event: bool = True
+    rejected: str = ""    # why this ramp is not a breakaway (empty: valid)
 
 
 class StaticFrictionTest:
@@ -41,13 +42,20 @@ class StaticFrictionTest:
 
     def fit(self, records: list[Breakaway]):
         by = {}
+        self.rejected_ = [r for r in records if r.rejected]
         for r in records:
+            if r.rejected:
+                continue
             by.setdefault((r.motor, r.pose), {}).setdefault(r.direction, []).append(r.torque)
         fs = [[] for _ in range(self.n)]
         self.gravity_ = []
         for (m, pose), d in sorted(by.items(), key=lambda kv: (kv[0][0], str(kv[0][1]))):
             if 1 in d and -1 in d:
                 tp, tn = float(np.mean(d[1])), float(np.mean(d[-1]))
+                if tp <= tn:
+                    # eq. 3 needs tau+ > tau-: this pose's ramps did not start from rest
+                    self.rejected_.append(Breakaway(m, 0, tp - tn, pose, rejected=f"tau+ {tp:.4g} <= tau- {tn:.4g}"))
+                    continue
                 fs[m].append((tp - tn) / 2.0)                                   # eq. 3
                 self.gravity_.append({"motor": m, "pose": list(pose), "torque": (tp + tn) / 2.0,   # eq. 4
                                       "tau_plus": tp, "tau_minus": tn})

@@ -70,7 +70,9 @@ def breakaways(log, sig, trial: str = "static", move_counts: float = 3.0) -> lis
               and e.get("joint", m) == m]
         pose = _pose_key(seg.get("pose"))
         if bk:
-            out.append(Breakaway(int(m), int(np.sign(d)), float(bk[0]["value"]), pose, float(bk[0]["t"]), True))
+            rec = Breakaway(int(m), int(np.sign(d)), float(bk[0]["value"]), pose, float(bk[0]["t"]), True)
+            rec.rejected = _check_direction(fb, m, int(np.sign(d)), t0, float(bk[0]["t"]), cpr[m])
+            out.append(rec)
             continue
         sel = np.flatnonzero((fb.t >= t0) & (fb.t <= t1) & fb.valid[:, m])
         if len(sel) < 3:
@@ -86,8 +88,25 @@ def breakaways(log, sig, trial: str = "static", move_counts: float = 3.0) -> lis
             j = np.searchsorted(log.command.cycle, fb.cycle[k])
             if j < len(log.command.cycle) and log.command.cycle[j] == fb.cycle[k]:
                 tau = log.command.target_torque[j, m]
-        out.append(Breakaway(int(m), int(np.sign(d)), float(tau), pose, float(fb.t[k]), False))
+        rec = Breakaway(int(m), int(np.sign(d)), float(tau), pose, float(fb.t[k]), False)
+        rec.rejected = _check_direction(fb, m, int(np.sign(d)), t0, float(fb.t[k]), cpr[m])
+        out.append(rec)
     return out
+
+
+def _check_direction(fb, m, direction, t0, t_break, cpr, after_s=0.05) -> str:
+    """A breakaway must move the axis the way the ramp pushes: if the motor went the other way (it was sliding,
+    e.g. under gravity, before the ramp reached the breakaway torque), the ramp measured nothing (eq. 2 fails)."""
+    i0 = np.searchsorted(fb.t, t0)
+    i1 = min(np.searchsorted(fb.t, t_break + after_s), len(fb.t) - 1)
+    if i0 >= len(fb.t) or i1 <= i0:
+        return ""
+    dq = fb.motor_position[i1, m] - fb.motor_position[i0, m]
+    one = 2 * np.pi / cpr if cpr > 0 else 1e-4
+    if abs(dq) > one and np.sign(dq) != direction:
+        return (f"axis moved against the ramp ({dq:+.4g} rad in {t_break - t0 + after_s:.3f} s, direction "
+                f"{direction:+d}): not at rest when the ramp started")
+    return ""
 
 
 def velocity_segments(log, sig, trial: str = "velocity", settle_fraction: float = 0.1,

@@ -212,3 +212,24 @@ def test_log_cholesky_is_physical_and_consistent_fit_recovers_feasible_truth(js2
     tau_fit = Wb @ fit.beta_
     assert np.sqrt(np.mean((tau_fit - tau_true) ** 2)) < 1e-3 * np.sqrt(np.mean(tau_true ** 2))
     assert standard_names(arm)[-1] == "fc_6"
+
+
+def test_false_breakaways_are_left_out_of_eq3():
+    """A ramp whose axis moves against the ramp (it was sliding, not at rest) or a pose with tau+ <= tau- measures
+    no breakaway: it is rejected with the reason instead of corrupting f_s."""
+    from identification.trials import _check_direction
+    from js2spec.log import FeedbackArrays
+
+    t = np.arange(200) / 500.0
+    pos = np.zeros((200, 1))
+    pos[100:, 0] = -0.01 * np.arange(100)           # the motor slides negative from t = 0.2 s
+    fb = FeedbackArrays(cycle=np.arange(200), t=t, motor_position=pos, torque=np.zeros((200, 1)),
+                        motor_current=None, status=None, valid=np.ones((200, 1), bool))
+    assert "against the ramp" in _check_direction(fb, 0, +1, 0.0, 0.21, 4096)
+    assert _check_direction(fb, 0, -1, 0.0, 0.21, 4096) == ""
+    recs = [Breakaway(0, 1, 0.05, (0.0,)), Breakaway(0, -1, -0.01, (0.0,)),        # good: f_s = 0.03
+            Breakaway(0, 1, -0.02, (1.0,)), Breakaway(0, -1, -0.01, (1.0,)),       # tau+ < tau-: rejected
+            Breakaway(0, 1, 0.5, (2.0,), rejected="axis moved against the ramp"), Breakaway(0, -1, 0.0, (2.0,))]
+    st = StaticFrictionTest(1).fit(recs)
+    assert st.static_[0] == pytest.approx(0.03) and st.pairs_[0] == 1
+    assert len(st.rejected_) == 2
