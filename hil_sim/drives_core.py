@@ -96,6 +96,7 @@ class DriveCore:
         self._hold_pos = None
         self._prev_counts = None
         self.velocity = 0.0                   # rad/s, filtered estimate from the encoder
+        self.brake_torque = self.rated_torque  # N*m, holding brake (engaged when not operation enabled)
         self._pos = 0.0
 
     # -- state machine ---------------------------------------------------------------------------------
@@ -161,7 +162,16 @@ class DriveCore:
             elif enable and not self.internal_qs:
                 self._enter_enabled()   # transition 16 (0x605A = 6 allows it)
 
+    def hold_torque(self) -> float:
+        if self._hold_pos is None:
+            self._hold_pos = self._pos
+        if abs(self.velocity) < 0.5:
+            return self.kp_hold * (self._hold_pos - self._pos) - self.kd * self.velocity
+        self._hold_pos = self._pos
+        return -self.kd * self.velocity
+
     def _enter_enabled(self) -> None:
+        self._hold_pos = None
         self.state = ENABLED
         self._integ = 0.0
         self.mode_display = self.mode
@@ -220,19 +230,15 @@ class DriveCore:
                 tau = self.kd * e + self._integ
             else:
                 tau = self.target_torque * self.rated_torque / 1000.0
-        elif st in (QUICK_STOP, FAULT_REACTION):
-            if self._hold_pos is None:
-                self._hold_pos = self._pos
-            if st == QUICK_STOP and abs(self.velocity) < 0.5:
-                tau = self.kp_hold * (self._hold_pos - self._pos) - self.kd * self.velocity
-            else:
-                tau = -self.kd * self.velocity
-                self._hold_pos = self._pos
-            if st == FAULT_REACTION:
-                self.state = FAULT   # fault reaction (0x605E = 0: torque off) completes within one period
-                tau = 0.0
         else:
-            tau = 0.0
+            # QUICK STOP / FAULT REACTION: the drive brakes and holds the motor; any other state: the holding brake
+            # (spring-applied, engaged whenever the drive does not hold the motor itself) does the same, up to the
+            # brake torque, so a disabled simulated arm does not fall (a real one has brakes)
+            tau = self.hold_torque()
+            if st == FAULT_REACTION:
+                self.state = FAULT   # fault reaction completes within one period
+            if st not in (QUICK_STOP, FAULT_REACTION):
+                lim = self.brake_torque
         if abs(tau) > lim:
             tau = math.copysign(lim, tau)
             self.internal_limit = True
@@ -339,8 +345,9 @@ class SimDriveSet:
             self.pending = [None] * self.n
             tau = np.zeros(self.n)
             for i, c in enumerate(self.cores):
-                if self.dead[i]:
-                    continue   # a dead drive delivers no torque
+                if self.dead[i]:   # a dead drive: no power, the spring-applied brake holds
+                    tau[i] = float(np.clip(c.hold_torque(), -c.brake_torque, c.brake_torque))
+                    continue
                 tau[i], code = c.torque(int(counts[i]))
                 if code is not None:
                     self.emcy_out.append((i, code))

@@ -306,6 +306,7 @@ class StaticTrial(Trial):
         self.directions = [int(x) for x in c.get("directions", [1, -1])]
         self.rest_s = float(c.get("rest_s", 0.1))
         self.rest_timeout_s = float(c.get("rest_timeout_s", 2.0))
+        self.attempts = int(c.get("attempts", 3))
 
     def estimate_s(self) -> float:
         return len(self.poses) * (1.5 + len(self.axes) * len(self.directions) *
@@ -319,18 +320,30 @@ class StaticTrial(Trial):
             yield from self.move(m_pose)
             for i in self.axes:
                 for direction in self.directions:
-                    yield from self.hold(m_pose, self.settle_s)
-                    # the ramp starts only once the axis is at rest (no count change for rest_s)
-                    c_last, still, waited = int(self.fb.counts[i]), 0, 0
                     z = np.zeros(ctx.n)
-                    while still < self.n_cycles(self.rest_s) and waited < self.n_cycles(self.rest_timeout_s):
-                        fb = yield Ref(m_pose, z)
-                        waited += 1
-                        still = still + 1 if int(fb.counts[i]) == c_last else 0
-                        c_last = int(fb.counts[i])
-                    at_rest = still >= self.n_cycles(self.rest_s)
+                    for attempt in range(self.attempts):
+                        yield from self.hold(m_pose, self.settle_s)
+                        # at rest under the PID (no count change for rest_s) ...
+                        c_last, still, waited = int(self.fb.counts[i]), 0, 0
+                        while still < self.n_cycles(self.rest_s) and waited < self.n_cycles(self.rest_timeout_s):
+                            fb = yield Ref(m_pose, z)
+                            waited += 1
+                            still = still + 1 if int(fb.counts[i]) == c_last else 0
+                            c_last = int(fb.counts[i])
+                        # ... and still at rest under the constant holding torque alone (inside the friction cone),
+                        # otherwise the ramp would start at a breakaway edge: hold again and retry
+                        tau0 = float(self.tracker.last_tau[i])
+                        c0 = int(self.fb.counts[i])
+                        at_rest = True
+                        for _ in range(self.n_cycles(self.rest_s)):
+                            fb = yield Ref(m_pose, z, {i: tau0})
+                            if int(fb.counts[i]) != c0:
+                                at_rest = False
+                                break
+                        if at_rest:
+                            break
+                        self.tracker.last_tau[i] = tau0
                     fb = self.fb
-                    tau0 = float(self.tracker.last_tau[i])
                     c0 = int(fb.counts[i])
                     start_cycle = fb.cycle
                     hist: dict[int, float] = {}       # cycle -> torque commanded in that cycle
@@ -347,12 +360,15 @@ class StaticTrial(Trial):
                             break
                         fb = yield Ref(m_pose, np.zeros(ctx.n), {i: tau})
                         hist[fb.cycle - 1] = tau
-                        moved = abs(int(fb.counts[i]) - c0)
                         if not fb.valid[i]:
                             continue
+                        moved = direction * (int(fb.counts[i]) - c0)     # in the direction of the ramp
+                        if moved <= -self.threshold:
+                            result = ("none", f"moved against the ramp ({moved} counts): breakaway not measured")
+                            break
                         if moved >= 1 and first_move_cycle is None:
                             first_move_cycle = fb.cycle
-                        elif moved == 0:
+                        elif moved <= 0:
                             first_move_cycle = None
                         if moved >= self.threshold:
                             # feedback of cycle f first showed movement: it happened between SYNC f-1 and f,
