@@ -26,6 +26,8 @@ class BaseParameters:
     E: np.ndarray               # (r, p): beta = E @ pi
     names: list[str]            # readable combination names (length r)
     zero_index: np.ndarray      # standard parameters with no effect on the torques at all
+    col_scale: np.ndarray | None = None   # base column i = col_scale[i] * standard column base_index[i]
+    lead_index: np.ndarray | None = None  # the standard parameter each base parameter is named after
 
     @property
     def n(self) -> int:
@@ -33,14 +35,18 @@ class BaseParameters:
 
     def project(self, W: np.ndarray) -> np.ndarray:
         """Base regressor: the base columns of a standard regressor (last axis). ``W @ pi == project(W) @ E @ pi``."""
-        return W[..., self.base_index]
+        Wb = W[..., self.base_index]
+        if self.col_scale is not None:
+            Wb = Wb * self.col_scale
+        return Wb
 
     def beta(self, pi: np.ndarray) -> np.ndarray:
         """Base parameter values of a standard parameter vector."""
         return self.E @ pi
 
     def lead(self, i: int) -> str:
-        return self.std_names[self.base_index[i]]
+        li = self.base_index if self.lead_index is None else self.lead_index
+        return self.std_names[li[i]]
 
     def members(self, i: int, tol: float = 1e-9) -> list[str]:
         return [self.std_names[j] for j in np.flatnonzero(np.abs(self.E[i]) > tol)]
@@ -52,8 +58,9 @@ class BaseParameters:
         if len(hits) == 0:
             return None
         # prefer the one where it is the lead
+        li = self.base_index if self.lead_index is None else self.lead_index
         for h in hits:
-            if self.base_index[h] == j:
+            if li[h] == j:
                 return int(h)
         return int(hits[np.argmax(np.abs(self.E[hits, j]))])
 
@@ -65,7 +72,8 @@ class BaseParameters:
     def subset(self, keep: np.ndarray) -> "BaseParameters":
         keep = np.asarray(keep)
         return BaseParameters(self.std_names, self.base_index[keep], self.E[keep], [self.names[i] for i in keep],
-                              self.zero_index)
+                              self.zero_index, None if self.col_scale is None else self.col_scale[keep],
+                              None if self.lead_index is None else self.lead_index[keep])
 
 
 def _fmt(c: float) -> str:
@@ -73,8 +81,12 @@ def _fmt(c: float) -> str:
 
 
 def base_parameters(arm: ArmModel, offsets: bool = False, n_samples: int = 400, seed: int = 0,
-                    rtol: float = 1e-8) -> BaseParameters:
-    """Structural base parameters of ``arm`` by pivoted QR on random states (joint angles uniform on +-pi)."""
+                    rtol: float = 1e-8, prefer: tuple = ("Ja_",)) -> BaseParameters:
+    """Structural base parameters of ``arm`` by pivoted QR on random states (joint angles uniform on +-pi).
+
+    A combination that holds a parameter named ``prefer`` (the motor inertias: the paper's J_a) is named and scaled
+    after it (``Ja_2 + 0.0001*Iyy_link2 + ...`` rather than ``Iyy_link2 + ... + 10000*Ja_2``): the same base
+    parameter divided by its J_a coefficient, its regressor column multiplied by it."""
     rng = np.random.default_rng(seed)
     n = arm.n
     qj = rng.uniform(-np.pi, np.pi, size=(n_samples, n))
@@ -103,11 +115,22 @@ def base_parameters(arm: ArmModel, offsets: bool = False, n_samples: int = 400, 
     # un-normalise: column j normalised by norms[j]  ->  beta_i = pi_bi + sum_j G_ij * norms[dj]/norms[bi] * pi_dj
     E[:, dep_cols] = G * norms[dep_cols][None, :] / norms[base_cols][:, None]
     E[np.abs(E) < 1e-10 * np.abs(E).max()] = 0.0
+    # name (and scale) a combination after a preferred member (J_a)
+    lead = base_cols.copy()
+    scale = np.ones(r)
+    for i in range(r):
+        for j in np.flatnonzero(E[i]):
+            if j != base_cols[i] and names[j].startswith(prefer):
+                c = E[i, j]
+                E[i] = E[i] / c
+                scale[i] = c
+                lead[i] = j
+                break
     # order the base parameters as the standard ones (readable), not by pivot
-    order = np.argsort(base_cols, kind="stable")
-    base_cols, E = base_cols[order], E[order]
+    order = np.argsort(lead, kind="stable")
+    base_cols, E, lead, scale = base_cols[order], E[order], lead[order], scale[order]
     readable = []
-    for i, b in enumerate(base_cols):
+    for i, b in enumerate(lead):
         terms = [names[b]]
         for j in np.flatnonzero(E[i]):
             if j == b:
@@ -116,14 +139,14 @@ def base_parameters(arm: ArmModel, offsets: bool = False, n_samples: int = 400, 
             terms.append(f"{'+' if c > 0 else '-'} {_fmt(abs(c))}*{names[j]}")
         readable.append(" ".join(terms))
     return BaseParameters(std_names=names, base_index=base_cols, E=E, names=readable,
-                          zero_index=np.flatnonzero(~nonzero))
+                          zero_index=np.flatnonzero(~nonzero), col_scale=scale, lead_index=lead)
 
 
 def friction_mask(bp: BaseParameters, arm: ArmModel, offsets: bool = False) -> np.ndarray:
     """Boolean mask over base parameters: True for the pure friction (viscous/Coulomb/offset) ones."""
     g = column_groups(arm, offsets)
     fr = set(np.concatenate([g["viscous"], g["coulomb"], g["offset"]]).tolist())
-    return np.array([int(b) in fr and set(np.flatnonzero(bp.E[i])) <= fr for i, b in enumerate(bp.base_index)])
+    return np.array([set(np.flatnonzero(bp.E[i])) <= fr for i in range(bp.n)])
 
 
 def condition_number(Wb: np.ndarray, normalise: bool = True) -> float:

@@ -431,7 +431,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
         fixed_std = np.full(p, np.nan)
         # friction standard values = the chosen method's friction base parameters
         for i in fr:
-            fixed_std[bp.base_index[i]] = mr.beta[i]
+            fixed_std[bp.std_names.index(bp.lead(i))] = mr.beta[i]
         try:
             phys = PhysicalConsistencyFit().fit(bp.E, mr.beta, gram, arm.nominal_inertial, n, groups["motor"],
                                                 fixed_std)

@@ -51,10 +51,11 @@ def _pose_key(pose) -> tuple:
     return tuple(np.round(np.asarray(pose, float), 3).tolist()) if pose is not None else ()
 
 
-def breakaways(log, sig, trial: str = "static", move_counts: float = 3.0) -> list[Breakaway]:
+def breakaways(log, sig, trial: str = "static", move_counts: float = 2.0) -> list[Breakaway]:
     """Breakaway torques of the static test: the ``breakaway`` event in each ramp segment, or, when a segment has
-    none, detected from the data: the first cycle whose encoder angle left the start by more than ``move_counts``
-    counts (the torque is the command of that cycle if the log has commands, else the measured torque)."""
+    none, detected from the data: the first cycle whose encoder left the start by one count, confirmed by
+    ``move_counts`` counts (the torque is the command applied in the interval it moved in — the command logged one
+    cycle earlier — if the log has commands, else the measured torque)."""
     t_end = float(log.feedback.t[-1])
     evs = log.events
     out = []
@@ -74,19 +75,24 @@ def breakaways(log, sig, trial: str = "static", move_counts: float = 3.0) -> lis
             rec.rejected = _check_direction(fb, m, int(np.sign(d)), t0, float(bk[0]["t"]), cpr[m])
             out.append(rec)
             continue
-        sel = np.flatnonzero((fb.t >= t0) & (fb.t <= t1) & fb.valid[:, m])
+        # the ramp's segment may end at the breakaway itself: look a little past it for the confirmation
+        sel = np.flatnonzero((fb.t >= t0) & (fb.t <= t1 + 0.1) & fb.valid[:, m])
         if len(sel) < 3:
             continue
         q = fb.motor_position[sel, m]
-        thr = move_counts * (2 * np.pi / cpr[m]) if cpr[m] > 0 else 1e-3
-        moved = np.flatnonzero(np.abs(q - q[0]) > thr)
-        if len(moved) == 0:
+        one = (2 * np.pi / cpr[m]) if cpr[m] > 0 else 1e-4
+        confirmed = np.flatnonzero(np.abs(q - q[0]) > (move_counts - 0.5) * one)
+        if len(confirmed) == 0:
             continue
+        # first movement: the first cycle at least one count away, up to the confirmation
+        first = np.flatnonzero(np.abs(q[:confirmed[0] + 1] - q[0]) > 0.5 * one)
+        moved = first if len(first) else confirmed
         k = sel[moved[0]]
         tau = fb.torque[k, m]
         if log.command is not None:
-            j = np.searchsorted(log.command.cycle, fb.cycle[k])
-            if j < len(log.command.cycle) and log.command.cycle[j] == fb.cycle[k]:
+            # command logged with cycle c is applied from SYNC c+1: the interval ending at SYNC k ran command k-1
+            j = np.searchsorted(log.command.cycle, fb.cycle[k] - 1)
+            if j < len(log.command.cycle) and log.command.cycle[j] == fb.cycle[k] - 1:
                 tau = log.command.target_torque[j, m]
         rec = Breakaway(int(m), int(np.sign(d)), float(tau), pose, float(fb.t[k]), False)
         rec.rejected = _check_direction(fb, m, int(np.sign(d)), t0, float(fb.t[k]), cpr[m])

@@ -194,3 +194,20 @@ def test_synthetic_eq1_log_simultaneous_recovers_base_parameters_and_reports_gap
     assert np.mean(np.abs(z) < 2) > 0.8
     notes = " ".join(r.notes)
     assert "4 lost cycles" in notes and "NaN" in notes
+
+
+def test_static_test_without_breakaway_events_detects_breakaway_from_the_data(session_log):
+    """Eq. 2-4 from the encoder data alone (a log whose ramps carry no breakaway event) agrees with the events."""
+    from identification.sequential import StaticFrictionTest
+    from identification.trials import breakaways
+    from js2spec.log import read_log
+
+    log = read_log(session_log)
+    from_events = breakaways(log, None)
+    assert all(r.from_event for r in from_events)
+    log.events = [e for e in log.events if e["kind"] != "breakaway"]
+    detected = breakaways(log, None)
+    assert len(detected) == len(from_events) and not any(r.from_event for r in detected)
+    a = StaticFrictionTest(log.drives.n).fit(from_events).static_
+    b = StaticFrictionTest(log.drives.n).fit(detected).static_
+    np.testing.assert_allclose(b, a, rtol=0.03)
