@@ -36,7 +36,8 @@ def sim_session(trials: tuple = ("static", "velocity", "acceleration", "validati
 
     robot = load_robot("js2")
     path = _TMP / f"sim_{'_'.join(trials)}_{seed}_{len(effects)}.mcap"
-    plant = Plant(robot, seed=seed, effects=[dict(e) for e in effects]) if effects else None
+    plant = Plant(robot, seed=seed, effects=[{k: (list(v) if isinstance(v, tuple) else v) for k, v in dict(e).items()}
+                                            for e in effects]) if effects else None
     with DirectDriveGroup(robot, plant=plant, seed=seed) as group:
         res = run_trials(group, robot, list(trials), path)
     assert not res.aborted, res.reason
