@@ -389,9 +389,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
     todo = (["mixed"] if run_mixed and np.isfinite(fv_).all() else []) + ["simultaneous"]
     for name in todo:
         if name == "mixed":
-            free = nfr
-            # offsets (if any) are not measured by the sequential tests: keep them free
-            y = Y - np.einsum("smp,p->sm", W[:, :, fr], np.nan_to_num(friction_seq[fr]))
+            # friction fixed from the sequential tests (eq. 5); offsets (if modelled) are not measured there: free
             off_idx = [i for i in fr if bp.lead(i).startswith("off_")]
             free = np.sort(np.concatenate([nfr, off_idx])).astype(int)
             fixed_idx = np.array([i for i in fr if i not in off_idx], int)

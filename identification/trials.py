@@ -100,17 +100,18 @@ def breakaways(log, sig, trial: str = "static", move_counts: float = 2.0) -> lis
     return out
 
 
-def _check_direction(fb, m, direction, t0, t_break, cpr, after_s=0.05) -> str:
+def _check_direction(fb, m, direction, t0, t_break, cpr, after_cycles=2) -> str:
     """A breakaway must move the axis the way the ramp pushes: if the motor went the other way (it was sliding,
-    e.g. under gravity, before the ramp reached the breakaway torque), the ramp measured nothing (eq. 2 fails)."""
+    e.g. under gravity, before the ramp reached the breakaway torque), the ramp measured nothing (eq. 2 fails).
+    Checked from the ramp start to ``after_cycles`` past the breakaway (what follows is the trial's back-off)."""
     i0 = np.searchsorted(fb.t, t0)
-    i1 = min(np.searchsorted(fb.t, t_break + after_s), len(fb.t) - 1)
+    i1 = min(np.searchsorted(fb.t, t_break) + after_cycles, len(fb.t) - 1)
     if i0 >= len(fb.t) or i1 <= i0:
         return ""
     dq = fb.motor_position[i1, m] - fb.motor_position[i0, m]
     one = 2 * np.pi / cpr if cpr > 0 else 1e-4
     if abs(dq) > one and np.sign(dq) != direction:
-        return (f"axis moved against the ramp ({dq:+.4g} rad in {t_break - t0 + after_s:.3f} s, direction "
+        return (f"axis moved against the ramp ({dq:+.4g} rad in {fb.t[i1] - fb.t[i0]:.3f} s, direction "
                 f"{direction:+d}): not at rest when the ramp started")
     return ""
 

@@ -227,6 +227,8 @@ def test_false_breakaways_are_left_out_of_eq3():
                         motor_current=None, status=None, valid=np.ones((200, 1), bool))
     assert "against the ramp" in _check_direction(fb, 0, +1, 0.0, 0.21, 4096)
     assert _check_direction(fb, 0, -1, 0.0, 0.21, 4096) == ""
+    # what happens after the breakaway (the trial backs off) does not count
+    assert _check_direction(fb, 0, +1, 0.0, 0.19, 4096) == ""
     recs = [Breakaway(0, 1, 0.05, (0.0,)), Breakaway(0, -1, -0.01, (0.0,)),        # good: f_s = 0.03
             Breakaway(0, 1, -0.02, (1.0,)), Breakaway(0, -1, -0.01, (1.0,)),       # tau+ < tau-: rejected
             Breakaway(0, 1, 0.5, (2.0,), rejected="axis moved against the ramp"), Breakaway(0, -1, 0.0, (2.0,))]
