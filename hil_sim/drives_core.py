@@ -163,12 +163,10 @@ class DriveCore:
                 self._enter_enabled()   # transition 16 (0x605A = 6 allows it)
 
     def hold_torque(self) -> float:
+        """Brake to standstill and hold the position latched when holding began (PD, damping ratio ~0.7)."""
         if self._hold_pos is None:
             self._hold_pos = self._pos
-        if abs(self.velocity) < 0.5:
-            return self.kp_hold * (self._hold_pos - self._pos) - self.kd * self.velocity
-        self._hold_pos = self._pos
-        return -self.kd * self.velocity
+        return self.kp_hold * (self._hold_pos - self._pos) - self.kd * self.velocity
 
     def _enter_enabled(self) -> None:
         self._hold_pos = None
@@ -177,6 +175,7 @@ class DriveCore:
         self.mode_display = self.mode
 
     def _enter_quick_stop(self, internal: bool) -> None:
+        self._standstill = 0
         self.state = QUICK_STOP
         self.internal_qs = internal
         self._hold_pos = None
@@ -237,6 +236,13 @@ class DriveCore:
             tau = self.hold_torque()
             if st == FAULT_REACTION:
                 self.state = FAULT   # fault reaction completes within one period
+            elif st == QUICK_STOP and self.internal_qs:
+                # a quick stop the drive raised itself (master lost): once at standstill, disable (brake holds);
+                # option code 2 semantics -- a commanded quick stop stays in QUICK STOP ACTIVE (0x605A = 6)
+                self._standstill = self._standstill + 1 if abs(self.velocity) < 0.5 else 0
+                if self._standstill >= 25:
+                    self.state = SWITCH_ON_DISABLED
+                    self.internal_qs = False
             if st not in (QUICK_STOP, FAULT_REACTION):
                 lim = self.brake_torque
         if abs(tau) > lim:

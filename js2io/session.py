@@ -127,9 +127,8 @@ class Session:
         if fatal is None:
             st = fb.states()
             for i, s in enumerate(st):
-                if fb.valid[i] and self.g.target_state == "enabled" and s in (cia402.FAULT, cia402.FAULT_REACTION,
-                                                                            cia402.QUICK_STOP):
-                    fatal = f"drive {i}: {s} (statusword 0x{int(fb.status[i]):04X})"
+                if fb.valid[i] and self.g.target_state == "enabled" and s != cia402.ENABLED:
+                    fatal = f"drive {i} left OPERATION ENABLED: {s} (statusword 0x{int(fb.status[i]):04X})"
                     self._event("fault", joint=i, detail=fatal)
                     break
         if fatal is not None:

@@ -75,13 +75,12 @@ def test_fault_stops_trial_safely(tmp_path, cfg, fault, detail):
     assert res.aborted, res.text()
     assert detail in res.reason or detail in " ".join(
         e.get("detail", "") for e in read_log(path).events), res.reason
-    skip = (4,) if fault.startswith("dead") else ()
     if fault.startswith("bus_error"):
-        # bus-off: the drives cannot be commanded any more; they must have stopped on their own (heartbeat
-        # consumer -> quick stop) or at least never be left enabled with a torque the master still thinks it sends
+        # bus-off: the master cannot reach the drives any more; they stop on their own (heartbeat consumer ->
+        # quick stop -> disabled at standstill): see test_bus_error_drives_quick_stop_without_master
         pass
     else:
-        _assert_disabled(sim_set, skip=skip)
+        _assert_disabled(sim_set, skip=(4,) if fault.startswith("dead") else ())
     _check_log(path, detail_has=detail)
 
 
@@ -93,10 +92,16 @@ def test_bus_error_drives_quick_stop_without_master(tmp_path, cfg):
         res = run_trials(rig.group, ROBOT, ["excitation"], path, trials_config=cfg)
         # the simulated drives' own view: after bus-off nothing more arrives; quick stop after 3 x heartbeat
         rig.group.stop_heartbeat()
-        time.sleep(0.5)
+        # the drives see no master heartbeat: quick stop, then disabled at standstill (wall clock: the consumer
+        # timeout; SYNCs no longer reach them, so step their physics as the wall clock would)
+        t_end = time.monotonic() + 5.0
+        while time.monotonic() < t_end and any(c.state != cia402.SWITCH_ON_DISABLED for c in rig.sim.set.cores):
+            time.sleep(0.05)
+            with rig.sim.set.lock:
+                rig.sim.set.on_sync()
         states = [c.state for c in rig.sim.set.cores]
     assert res.aborted and "bus error" in res.text()
-    assert all(s != cia402.ENABLED for s in states), states
+    assert all(s == cia402.SWITCH_ON_DISABLED for s in states), states
     _check_log(path, detail_has="bus error")
 
 
