@@ -187,6 +187,11 @@ class CanopenDriveGroup(DriveGroup):
             net.subscribe(0x180 + nid, self._on_tpdo)
         self.source_detail = "hil_sim:canopen" if all(n.startswith("js2-hil_sim") for n in names) else "hardware"
         self.source = "hil_sim" if self.source_detail.startswith("hil_sim") else "hardware"
+        if self.source == "hardware" and not self.realtime:
+            # lock-step would send SYNC as fast as real drives answer, and t = cycle / cycle_hz would be false
+            self.realtime = True
+            log.warning("drives on this bus are not the js2 simulator (0x1008 = %r): SYNC paced by the wall clock "
+                        "(--realtime)", names[0])
         self._hb_task = net.send_periodic(0x700 + self.master_node_id, bytes([5]), self.hb_ms / 1000.0)
         net.send_message(0x000, bytes([0x01, 0]))      # NMT: start all
         for i in range(self.n):                        # modes verified on 0x6061
