@@ -112,6 +112,17 @@ class ConstantVelocityTest:
             self.viscous_std_[m], self.coulomb_std_[m] = a.viscous_std, a.coulomb_std
         return self
 
+    def predict(self, motor: int, speed) -> np.ndarray:
+        """Eq. 5: friction torque (N m, motor side) of ``motor`` at motor speeds ``speed`` (rad/s)."""
+        w = np.asarray(speed, float)
+        return self.viscous_[motor] * w + self.coulomb_[motor] * np.sign(w)
+
+    def score(self, motor: int) -> float:
+        """R^2 of the eq. 5 line through the motor's Fig. 2 points."""
+        p = self.axes_[motor].points
+        r = p[:, 1] - self.predict(motor, p[:, 0])
+        return float(1 - np.sum(r ** 2) / np.sum((p[:, 1] - p[:, 1].mean()) ** 2))
+
     def _gravity_rows(self, arm: ArmModel, q_motor: np.ndarray, m: int) -> np.ndarray:
         qj = arm.joint_from_motor(q_motor)
         z = np.zeros_like(qj)

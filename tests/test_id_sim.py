@@ -78,8 +78,9 @@ def test_fig2_and_fig3_reproduced(ident):
         pts = ax.points
         assert (pts[:, 0] > 0).sum() >= 3 and (pts[:, 0] < 0).sum() >= 3     # several speeds, both directions
         # the points lie on the eq. 5 line
-        line = ax.viscous * pts[:, 0] + ax.coulomb * np.sign(pts[:, 0])
+        line = vt.predict(m, pts[:, 0])
         assert np.max(np.abs(pts[:, 1] - line)) < 0.05 * np.max(np.abs(pts[:, 1]))
+        assert vt.score(m) > 0.99
     assert fig2(ident) is not None
     i_b4 = ident.param_index("B_4")
     mixed, simul = ident.methods["mixed"], ident.methods["simultaneous"]
