@@ -304,8 +304,8 @@ class CanopenSimulator:
                     continue
                 if now - self._hb_last[mid] > ms / 1000.0:
                     self._hb_tripped[i] = True
-                    log.warning("drive %d: master heartbeat lost (> %d ms): quick stop", i, ms)
-                    self.set.heartbeat_lost(i)
+                    if self.set.heartbeat_lost(i):
+                        log.warning("drive %d: master heartbeat lost (> %d ms) while enabled: quick stop", i, ms)
             with self._lock:
                 self._send_emcy()
 

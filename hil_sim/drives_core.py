@@ -298,12 +298,16 @@ class SimDriveSet:
         if self.cores[i].fault(code):
             self.emcy_out.append((i, code))
 
-    def heartbeat_lost(self, i: int | None = None) -> None:
-        """The master's heartbeat stopped (consumer timeout): quick stop and EMCY 0x8130."""
+    def heartbeat_lost(self, i: int | None = None) -> list[int]:
+        """The master's heartbeat stopped (consumer timeout): quick stop and EMCY 0x8130 for every enabled drive.
+        Returns the drives that were stopped."""
+        stopped = []
         with self.lock:
             for k in range(self.n) if i is None else [i]:
                 if not self.dead[k] and self.cores[k].quick_stop():
                     self.emcy_out.append((k, EMCY_HEARTBEAT))
+                    stopped.append(k)
+        return stopped
 
     def _apply_faults(self, k: int) -> None:
         keep = []
