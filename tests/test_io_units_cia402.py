@@ -125,3 +125,29 @@ def test_cli_names_the_silent_node(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "node 1: no SDO answer" in err and "check that the drive" in err, err
     assert not (tmp_path / "x.mcap").exists()
+
+
+def test_sdo_configuration_reaches_the_drives():
+    """After CanopenDriveGroup.open(): 0x6072, 0x607D, 0x6060, heartbeats and the PDO mapping are what the master
+    wrote, as seen inside the simulated drives (their object dictionaries and state)."""
+    import struct
+    from hil_sim.canopen_inprocess import InProcessCanopen
+    from js2io.group import motor_position_limits_counts
+    with InProcessCanopen(ROBOT) as rig:
+        g = rig.group
+        g.open()
+        fb = g.cycle(None)          # one SYNC: the drives build their PDOs from the mapping the master wrote
+        assert fb.valid.all()
+        lo, hi = motor_position_limits_counts(ROBOT.drives, g.scaling)
+        for i, (core, node) in enumerate(zip(rig.sim.set.cores, rig.sim.nodes)):
+            assert core.max_torque == int(np.floor(ROBOT.drives.torque_limit[i] / ROBOT.drives.rated_torque[i] * 1000
+                                                   + 1e-9))
+            assert (core.pos_min, core.pos_max) == (lo[i], hi[i])
+            assert core.mode == core.mode_display == cia402.MODE_CST
+            assert rig.sim._hb_consumer[i] == (0x7F, 300)
+            assert node.nmt.state == "OPERATIONAL"
+            cob, st, idx = rig.sim._tpdo[i]
+            assert cob == 0x180 + g.node_ids[i] and idx == [0x6041, 0x6064, 0x6078] and st.size == 8
+            assert rig.sim._rpdo[i][0][1] == [0x6040, 0x6071]
+            assert struct.unpack("<H", node.get_data(0x1017, 0))[0] == 100
+        assert g.source == "hil_sim" and g.source_detail == "hil_sim:canopen"
