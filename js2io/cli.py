@@ -20,7 +20,8 @@ def build_parser() -> argparse.ArgumentParser:
                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n", 2)[2])
     p.add_argument("--trial", default="all",
                    help="static, velocity, acceleration, excitation, validation, all, or a comma list (default all)")
-    p.add_argument("-o", "--output", required=True, help="the js2 log to write (.mcap)")
+    p.add_argument("-o", "--output", help="the js2 log to write (.mcap)")
+    p.add_argument("--dry-run", action="store_true", help="check the configuration and print the trial plan; no bus")
     p.add_argument("--robot", default="js2", help="robot name under configs/ or a robot folder (default js2)")
     p.add_argument("--config", help="trials file (default: the robot's trials.yaml)")
     p.add_argument("--seed", type=int, default=0, help="seed for trajectories and the simulator's noise")
@@ -45,6 +46,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rt-priority", type=int, default=0, metavar="N",
                    help="run the cycle loop with SCHED_FIFO priority N (Linux; root/CAP_SYS_NICE); 0 = off")
     return p
+
+
+def plan_text(robot, cfg, trials, cycle_hz) -> str:
+    lines = [f"robot {robot.name} ({robot.folder}), trials file {cfg.get('_path')}, {cycle_hz:g} Hz"]
+    total = 0.0
+    for t in trials:
+        est = t.estimate_s()
+        total += est
+        extra = ""
+        if t.name == "static":
+            extra = f"{len(t.poses)} poses x {len(t.axes)} axes x {len(t.directions)} directions"
+        elif t.name == "velocity":
+            runs = {i: len(t.runs(i)[1]) for i in t.axes}
+            extra = f"{t.mode}, speeds per axis {runs} (x2 directions), steady <= {t.steady_s:g} s"
+        elif t.name == "acceleration":
+            extra = f"{len(t._plan)} strokes, durations {t.durations}"
+        else:
+            extra = f"period {t.period:g} s x {t.periods:g}, {t.harmonics} harmonics"
+        lines.append(f"  {t.name:<12} ~{est:6.1f} s  {extra}")
+    lines.append(f"  total        ~{total:6.1f} s of arm time")
+    return "\n".join(lines)
 
 
 def main(argv=None) -> int:
@@ -87,6 +109,11 @@ def _run(args) -> int:
     cycle_hz = args.cycle_hz or robot.drives.cycle_hz or 500.0
     ctx = TrialContext(robot.drives, 1.0 / cycle_hz, cfg, seed=args.seed)
     trials = make_trials(names, ctx)
+    if args.dry_run:
+        print(plan_text(robot, cfg, trials, cycle_hz))
+        return 0
+    if not args.output:
+        raise Js2Error("-o/--output FILE.mcap is required (or --dry-run)")
     try:
         if args.direct:
             from hil_sim.direct import DirectDriveGroup

@@ -44,7 +44,35 @@ def load_trials_config(path) -> dict:
     if not isinstance(cfg, dict):
         raise ConfigError(path, None, "must be a mapping with sections control, static, velocity, ...")
     cfg["_path"] = str(path)
+    check_keys(cfg)
     return cfg
+
+
+KNOWN_KEYS = {
+    None: {"margin", "control", "static", "velocity", "acceleration", "excitation", "validation", "_path"},
+    "control": {"kp", "kd", "ki", "velocity_filter_hz", "max_acceleration"},
+    "static": {"poses", "axes", "directions", "ramp_rate", "max_ramp", "threshold_counts", "settle_s", "backoff_s",
+               "rest_s", "rest_timeout_s", "attempts"},
+    "velocity": {"pose", "axes", "max_speed", "speed_fractions", "acceleration", "steady_s", "settle_s", "mode"},
+    "acceleration": {"center", "amplitude", "durations", "strokes_per_duration", "speed_fraction", "pause_s", "seed"},
+    "excitation": {"center", "period_s", "harmonics", "periods", "amplitude", "speed_fraction", "fade_s", "seed"},
+}
+KNOWN_KEYS["validation"] = KNOWN_KEYS["excitation"]
+
+
+def check_keys(cfg: dict) -> None:
+    """Refuse unknown keys: a misspelt key would otherwise silently fall back to a default."""
+    path = cfg.get("_path")
+    for section, known in KNOWN_KEYS.items():
+        d = cfg if section is None else cfg.get(section)
+        if d is None:
+            continue
+        if not isinstance(d, dict):
+            raise ConfigError(path, section, "must be a mapping")
+        bad = sorted(set(d) - known)
+        if bad:
+            where = bad[0] if section is None else f"{section}.{bad[0]}"
+            raise ConfigError(path, where, f"unknown key; known here: {', '.join(sorted(known - {'_path'}))}")
 
 
 def _vec(cfg: dict, key: str, n: int, path, default=None) -> np.ndarray:

@@ -151,3 +151,20 @@ def test_sdo_configuration_reaches_the_drives():
             assert rig.sim._rpdo[i][0][1] == [0x6040, 0x6071]
             assert struct.unpack("<H", node.get_data(0x1017, 0))[0] == 100
         assert g.source == "hil_sim" and g.source_detail == "hil_sim:canopen"
+
+
+def test_trials_config_refuses_unknown_keys_and_bad_poses(tmp_path):
+    import yaml
+    from js2io.trials import TrialContext, load_trials_config, make_trials
+    c = yaml.safe_load(ROBOT.trials_path.read_text())
+    c["static"]["ramp_rates"] = c["static"].pop("ramp_rate")
+    p = tmp_path / "t.yaml"
+    p.write_text(yaml.safe_dump(c))
+    with pytest.raises(ConfigError, match=r"static.ramp_rates.*unknown key"):
+        load_trials_config(p)
+    c["static"]["ramp_rate"] = c["static"].pop("ramp_rates")
+    c["static"]["poses"] = [[0.0, 1.69, 0.0, 0.0, 0.0, 0.0]]       # inside the envelope but not the margin
+    p.write_text(yaml.safe_dump(c))
+    ctx = TrialContext(ROBOT.drives, 0.002, load_trials_config(p))
+    with pytest.raises(ConfigError, match=r"static.poses\[0\].*outside the joint envelope"):
+        make_trials(["static"], ctx)
