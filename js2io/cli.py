@@ -43,6 +43,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "e.g. drive_fault:2@3000 (repeatable)")
     p.add_argument("--max-lost", type=int, default=10, help="consecutive lost TPDOs of one drive that abort (default 10)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--joint-state", action="store_true",
+                   help="also log /js2/joint_state (joint side, for viewers such as Foxglove)")
     p.add_argument("--rt-priority", type=int, default=0, metavar="N",
                    help="run the cycle loop with SCHED_FIFO priority N (Linux; root/CAP_SYS_NICE); 0 = off")
     return p
@@ -144,7 +146,8 @@ def _run(args) -> int:
               f"{cycle_hz:g} Hz, {'real time' if args.realtime else 'lock-step'}, {sched})", file=sys.stderr)
         group.open()
         writer = open_log(args.output, robot, group, cfg)
-        session = Session(group, writer, trials, progress=not args.no_progress, max_consecutive_lost=args.max_lost)
+        session = Session(group, writer, trials, progress=not args.no_progress, max_consecutive_lost=args.max_lost,
+                          joint_state=args.joint_state)
 
         def on_signal(signum, frame):
             session.stop_request = signal.Signals(signum).name

@@ -59,7 +59,7 @@ class SessionResult:
 class Session:
     def __init__(self, group: DriveGroup, writer: LogWriter, trials: list[Trial], *, progress: bool = False,
                  max_consecutive_lost: int = 10, stop_ramp_s: float = 0.3, enable_timeout_s: float = 1.0,
-                 on_cycle=None):
+                 on_cycle=None, joint_state: bool = False):
         self.g = group
         self.w = writer
         self.trials = trials
@@ -69,6 +69,8 @@ class Session:
         self.enable_timeout_s = enable_timeout_s
         self.stop_request: str | None = None      # set from a signal handler: "SIGINT", "SIGTERM"
         self.on_cycle = on_cycle                  # test/bench hook: called with (session, fb) every cycle
+        self.joint_state = joint_state            # also write /js2/joint_state (joint side, for viewers)
+        self._prev_fb = None
         self.n = group.n
         self.consec_lost = np.zeros(self.n, dtype=int)
         self.result = SessionResult(path=str(writer.path))
@@ -102,6 +104,14 @@ class Session:
         fb = self.g.sync()
         self.fb = fb
         self._log_feedback(fb)
+        if self.joint_state:
+            d = self.g.drives
+            prev = self._prev_fb
+            dq = ((fb.motor_position - prev.motor_position) / max(fb.t - prev.t, 1e-9) if prev is not None
+                  else np.zeros(self.n))
+            self.w.joint_state(fb.t, d.joints, d.joint_from_motor(fb.motor_position), d.joint_velocity_from_motor(dq),
+                               d.joint_torque_from_motor(fb.torque))
+            self._prev_fb = fb
         if self._bar is not None and fb.cycle % 50 == 0:
             if self._bar.n + 50 >= self._bar.total:    # estimate too short: stretch rather than overflow
                 self._bar.total = int(self._bar.n * 1.05) + 100
