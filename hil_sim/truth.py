@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from js2spec.drives import parse_vector
 from js2spec.errors import ConfigError
 
 from .effects import Effect, parse_effects
@@ -67,29 +68,9 @@ class SimTruth:
 
 
 def _vec(d: dict, key: str, n: int, source, *, required: bool, positive=False, default=None) -> np.ndarray:
-    name = key.split(".")[-1]
-    if name not in d or d[name] is None:
-        if required:
-            raise ConfigError(source, key, f"missing (a list of {n} numbers, one per drive)")
-        return np.full(n, float(default))
-    v = d[name]
-    if isinstance(v, bool):
-        raise ConfigError(source, key, f"must be numbers, got {v!r}")
-    if isinstance(v, (int, float)):
-        v = [v] * n
-    try:
-        arr = np.asarray(v, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError(source, key, f"must be a list of {n} numbers, got {v!r}") from None
-    if arr.shape != (n,):
-        raise ConfigError(source, key, f"must have one entry per drive ({n}), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ConfigError(source, key, "contains NaN or infinite values")
-    if positive and np.any(arr <= 0):
-        raise ConfigError(source, key, f"must be > 0, got {arr.tolist()}")
-    if np.any(arr < 0):
-        raise ConfigError(source, key, f"must be >= 0, got {arr.tolist()}")
-    return arr
+    """A per-drive list of sim_truth.yaml: finite and >= 0 (``positive``: > 0)."""
+    return parse_vector(d, key, n, source, required=required, positive=positive, nonneg=True, default=default,
+                        per="drive")
 
 
 def parse_truth(d: Any, n: int, source: str | Path | None = None, joints: list[str] | None = None) -> SimTruth:

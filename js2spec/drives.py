@@ -107,21 +107,29 @@ class DrivesConfig:
         return yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=None)
 
 
-def _vector(d: dict, key: str, n: int, source, *, required: bool, positive: bool = False,
-            nonneg: bool = False, default=None, integer: bool = False) -> np.ndarray | None:
-    if key not in d or d[key] is None:
+def parse_vector(d: dict, key: str, n: int, source, *, required: bool, positive: bool = False,
+                 nonneg: bool = False, default=None, integer: bool = False, per: str = "joint") -> np.ndarray | None:
+    """One per-joint list of a config mapping, validated; errors name ``source`` and ``key``.
+
+    ``key`` may be dotted (``limits.torque``): the last part is looked up in ``d``, the whole names it in errors.
+    A single number stands for all ``n`` entries. Missing and not ``required`` gives ``default`` broadcast (or None).
+    """
+    name = key.split(".")[-1]
+    if name not in d or d[name] is None:
         if required:
-            raise ConfigError(source, key, f"missing (a list of {n} numbers is required)")
+            raise ConfigError(source, key, f"missing (a list of {n} numbers, one per {per})")
         return None if default is None else np.full(n, default, dtype=float)
-    v = d[key]
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
+    v = d[name]
+    if isinstance(v, bool):
+        raise ConfigError(source, key, f"must be numbers, got {v!r}")
+    if isinstance(v, (int, float)):
         v = [v] * n
     try:
         arr = np.asarray(v, dtype=float)
     except (TypeError, ValueError):
         raise ConfigError(source, key, f"must be a list of {n} numbers, got {v!r}") from None
     if arr.shape != (n,):
-        raise ConfigError(source, key, f"must have one entry per joint ({n}), got shape {arr.shape}")
+        raise ConfigError(source, key, f"must have one entry per {per} ({n}), got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ConfigError(source, key, "contains NaN or infinite values")
     if positive and np.any(arr <= 0):
@@ -162,11 +170,11 @@ def parse_drives(d: Any, source: str | Path | None = None) -> DrivesConfig:
     torque_side = d.get("torque_side", "motor")
     if torque_side not in ("motor", "joint"):
         raise ConfigError(source, "torque_side", f"must be 'motor' or 'joint', got {torque_side!r}")
-    kt = _vector(d, "torque_constant", n, source, required=True, positive=True)
-    counts = _vector(d, "encoder_counts_per_rev", n, source, required=True, nonneg=True, integer=True)
-    rated_torque = _vector(d, "rated_torque", n, source, required=False, positive=True)
-    rated_current = _vector(d, "rated_current", n, source, required=False, positive=True)
-    offset = _vector(d, "joint_offset", n, source, required=False, default=0.0)
+    kt = parse_vector(d, "torque_constant", n, source, required=True, positive=True)
+    counts = parse_vector(d, "encoder_counts_per_rev", n, source, required=True, nonneg=True, integer=True)
+    rated_torque = parse_vector(d, "rated_torque", n, source, required=False, positive=True)
+    rated_current = parse_vector(d, "rated_current", n, source, required=False, positive=True)
+    offset = parse_vector(d, "joint_offset", n, source, required=False, default=0.0)
 
     can = d.get("can") or {}
     if not isinstance(can, dict):
@@ -188,11 +196,10 @@ def parse_drives(d: Any, source: str | Path | None = None) -> DrivesConfig:
     limits = d.get("limits") or {}
     if not isinstance(limits, dict):
         raise ConfigError(source, "limits", "must be a mapping (torque, position_min, position_max, velocity)")
-    lim_src = {k: v for k, v in limits.items()}
-    torque_limit = _vector(lim_src, "torque", n, source, required=False, positive=True)
-    pmin = _vector(lim_src, "position_min", n, source, required=False)
-    pmax = _vector(lim_src, "position_max", n, source, required=False)
-    vel = _vector(lim_src, "velocity", n, source, required=False, positive=True)
+    torque_limit = parse_vector(limits, "limits.torque", n, source, required=False, positive=True)
+    pmin = parse_vector(limits, "limits.position_min", n, source, required=False)
+    pmax = parse_vector(limits, "limits.position_max", n, source, required=False)
+    vel = parse_vector(limits, "limits.velocity", n, source, required=False, positive=True)
     if (pmin is None) != (pmax is None):
         raise ConfigError(source, "limits.position_min", "position_min and position_max go together")
     if pmin is not None and np.any(pmin >= pmax):

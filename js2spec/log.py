@@ -291,21 +291,27 @@ class Js2Log:
 
     def segments(self, trial: str | None = None) -> list[tuple[dict, float]]:
         """(segment_start event, end time) pairs, optionally of one trial; an unclosed segment ends at the log end."""
-        out, open_ = [], None
         t_end = float(self.feedback.t[-1]) if len(self.feedback) else 0.0
-        for e in self.events:
-            if trial is not None and e.get("trial") != trial:
-                continue
-            if e["kind"] == "segment_start":
-                if open_ is not None:
-                    out.append((open_, e["t"]))
-                open_ = e
-            elif e["kind"] == "segment_end" and open_ is not None:
+        return segments(self.events, trial, t_end)
+
+
+def segments(events: list[dict], trial: str | None, t_end: float) -> list[tuple[dict, float]]:
+    """(segment_start event, end time) pairs from a log's events, optionally of one trial only; a segment that is
+    never closed ends at ``t_end``."""
+    out, open_ = [], None
+    for e in events:
+        if trial is not None and e.get("trial") != trial:
+            continue
+        if e["kind"] == "segment_start":
+            if open_ is not None:
                 out.append((open_, e["t"]))
-                open_ = None
-        if open_ is not None:
-            out.append((open_, t_end))
-        return out
+            open_ = e
+        elif e["kind"] == "segment_end" and open_ is not None:
+            out.append((open_, e["t"]))
+            open_ = None
+    if open_ is not None:
+        out.append((open_, t_end))
+    return out
 
 
 def file_sha256(path: str | Path) -> str:
