@@ -289,12 +289,9 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
     if "velocity" in spans:
         segs_all = []
         for li in sorted({sp.log_index for sp in spans["velocity"]}):
-            segs = velocity_segments(logs[li], sigs[li], "velocity")
-            if segs:
-                segs_all.append((li, segs))
+            segs_all += velocity_segments(logs[li], sigs[li], "velocity")   # each segment knows its log's signals
         if segs_all:
-            li, segs = segs_all[0]
-            velocity = ConstantVelocityTest(n).fit(arm, sigs[li], segs,
+            velocity = ConstantVelocityTest(n).fit(arm, None, segs_all,
                                                    balance=static.gravity_ if static is not None else None)
             fc_, fc_sd = velocity.coulomb_, velocity.coulomb_std_
             fv_, fv_sd = velocity.viscous_, velocity.viscous_std_

@@ -74,6 +74,7 @@ class VelocitySegment:
     direction: int
     speed: float
     index: np.ndarray          # sample indices (into Signals) of the steady part
+    sig: object = None         # the Signals the indices refer to (several logs may hold velocity segments)
 
 
 @dataclass
@@ -98,6 +99,9 @@ class ConstantVelocityTest:
         self.rank_rtol = rank_rtol
 
     def fit(self, arm: ArmModel, sig, segments: list[VelocitySegment], balance: list[dict] | None = None):
+        """``segments`` refer to ``sig`` unless a segment carries its own ``sig`` (segments from several logs)."""
+        segments = [s if s.sig is not None else VelocitySegment(s.motor, s.direction, s.speed, s.index, sig)
+                    for s in segments]
         self.axes_ = {}
         for m in range(self.n):
             segs = [s for s in segments if s.motor == m and len(s.index) > 2]
@@ -133,9 +137,10 @@ class ConstantVelocityTest:
 
     def _fit_axis(self, arm, sig, m, segs, balance):
         idx = np.concatenate([s.index for s in segs])
-        w = sig.dq_motor[idx, m]
-        tau = sig.tau[idx, m]
-        G = self._gravity_rows(arm, sig.q_motor[idx], m) if self.gravity == "regressor" else np.zeros((len(idx), 0))
+        w = np.concatenate([s.sig.dq_motor[s.index, m] for s in segs])
+        tau = np.concatenate([s.sig.tau[s.index, m] for s in segs])
+        qm = np.concatenate([s.sig.q_motor[s.index] for s in segs])
+        G = self._gravity_rows(arm, qm, m) if self.gravity == "regressor" else np.zeros((len(idx), 0))
         rows_g = [G]
         y_extra = []
         if balance:
@@ -153,7 +158,7 @@ class ConstantVelocityTest:
         Gr = G @ U
         # the steady parts are not perfectly steady (the speed loop rings after the ramp): an inertia column takes
         # out J_eff * theta_m_dd so that it does not leak into B or f_c
-        acc = sig.ddq_motor[idx, m]
+        acc = np.concatenate([s.sig.ddq_motor[s.index, m] for s in segs])
         Gr = np.column_stack([acc, Gr])
         X = np.column_stack([w, np.sign(w), Gr])
         y = tau

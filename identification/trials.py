@@ -139,5 +139,5 @@ def velocity_segments(log, sig, trial: str = "velocity", settle_fraction: float 
         if len(sel) < 5:
             continue
         d = int(np.sign(seg.get("direction", np.sign(med))))
-        out.append(VelocitySegment(int(m), d, float(seg.get("speed", abs(med))), sel))
+        out.append(VelocitySegment(int(m), d, float(seg.get("speed", abs(med))), sel, sig))
     return out

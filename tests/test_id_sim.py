@@ -212,3 +212,22 @@ def test_static_test_without_breakaway_events_detects_breakaway_from_the_data(se
     a = StaticFrictionTest(log.drives.n).fit(from_events).static_
     b = StaticFrictionTest(log.drives.n).fit(detected).static_
     np.testing.assert_allclose(b, a, rtol=0.03)
+
+
+def test_session_split_over_one_log_per_trial(tmp_path, capsys):
+    """The spec lets a session span several files (one per trial, t restarting at 0): identified together, with the
+    validation trial in its own file, the mixed method meets the same friction targets."""
+    logs = [sim_session((t,), seed=1) for t in ("static", "velocity", "acceleration")]
+    val = sim_session(("validation",), seed=1)
+    out = tmp_path / "out"
+    rc, _, err = cli([*logs, "--validate", val, "-o", out, "-q", "--no-report"], capsys)
+    assert rc == 0, err
+    d = yaml.safe_load((out / "model.yaml").read_text())
+    assert [i["trials"] for i in d["inputs"]] == [["static"], ["velocity"], ["acceleration"], ["validation"]]
+    from hil_sim.truth import load_truth
+    from js2spec.robot import load_robot
+
+    tr = load_truth(load_robot("js2"))
+    for key, true in (("static", tr.static), ("coulomb", tr.coulomb), ("viscous", tr.viscous)):
+        np.testing.assert_allclose(d["friction"][key], true, rtol=0.05)
+    assert "validation" in d["validation"]["data"][0]
