@@ -28,7 +28,7 @@ from .consistency import PhysicalConsistencyFit
 from .estimators import BatchLeastSquares, RecursiveLeastSquares
 from .regressor import ArmModel, arm_model, build_regressor, column_groups, standard_names
 from .sequential import ConstantVelocityTest, StaticFrictionTest
-from .trials import breakaways, trial_spans, velocity_segments
+from .trials import TrialSpan, breakaways, trial_spans, velocity_segments
 
 
 class IdentificationError(Js2Error):
@@ -198,7 +198,7 @@ def _regressor_rows(arm, bp, sig, idx, offsets, progress=None):
         ddq = np.gradient(dq, 1.0 / fs, axis=0)
         # built in chunks and projected on the base columns at once: memory ~ N x n x n_base, not N x n x n_std
         Wb = np.empty((hi - lo, arm.n, bp.n))
-        step = 4096
+        step = 1024
         chunks = range(0, hi - lo, step)
         for c0 in (progress(chunks) if progress is not None else chunks):
             c1 = min(c0 + step, hi - lo)
@@ -260,6 +260,8 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
     for i, (lg, sig) in enumerate(zip(logs, sigs)):
         for sp in trial_spans(lg.events, float(lg.feedback.t[-1]), i):
             spans.setdefault(sp.name, []).append(sp)
+        # "all": every sample of every log (logs without trial events; --fit-trials all)
+        spans.setdefault("all", []).append(TrialSpan("all", float(sig.t[0]), float(sig.t[-1]), i))
     bp = base_parameters(arm, offsets=opt.offsets)
     groups = column_groups(arm, opt.offsets)
     fmask = friction_mask(bp, arm, opt.offsets)
@@ -309,10 +311,10 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
     # 4. fitting data
     fit_names = [t for t in opt.fit_trials if t in spans]
     if not fit_names:
-        have = sorted(spans) or ["none"]
+        have = sorted(k for k in spans if k != "all") or ["none"]
         raise IdentificationError(
             f"{', '.join(str(getattr(p, 'path', p)) for p in paths)}: no {' or '.join(repr(t) for t in opt.fit_trials)} trial for the inertial "
-            f"fit (trials present: {', '.join(have)}); pass --fit-trials with one that is there")
+            f"fit (trials present: {', '.join(have)}); pass --fit-trials with one that is there, or 'all'")
     fitW, fitY, fitV = [], [], []
     val_parts = []
     fit_where, val_where = [], []   # (Signals, sample indices): lets other models be evaluated on the same samples

@@ -51,7 +51,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--validate", nargs="*", default=[], metavar="LOG",
                    help="extra log(s) used only for validation")
     p.add_argument("--fit-trials", default="acceleration",
-                   help="comma-separated trial names whose data fit the inertial parameters (default: acceleration)")
+                   help="comma-separated trial names whose data fit the inertial parameters (default: acceleration; "
+                        "'all' = every sample, for logs without trial events)")
     p.add_argument("--validation-trials", default="validation",
                    help="comma-separated trial names held out for validation (default: validation); without any, "
                         "the last --holdout of the fitting data is held out")
