@@ -55,7 +55,7 @@ class _ErrorFrameListener(can.Listener):
 class CanopenDriveGroup(DriveGroup):
     def __init__(self, drives, network: canopen.Network, eds_path, *, cycle_hz: float | None = None,
                  realtime: bool = False, lockstep_timeout_s: float = 0.25, master_node_id: int = 0x7F,
-                 sdo_timeout_s: float = 0.5):
+                 sdo_timeout_s: float = 0.5, pump: bool = True):
         super().__init__(drives, cycle_hz)
         self.network = network
         self.eds_path = str(eds_path)
@@ -64,6 +64,10 @@ class CanopenDriveGroup(DriveGroup):
         self.lockstep_timeout_s = lockstep_timeout_s
         self.master_node_id = master_node_id
         self.sdo_timeout_s = sdo_timeout_s
+        # pump: during the cycle loop the main thread reads the bus itself (canopen's notifier thread is paused;
+        # heartbeats and EMCY are dispatched to canopen inline) -- no thread hand-off per TPDO, no GIL ping-pong
+        self.pump = pump
+        self._paused = False
         self.hb_ms = float(drives.heartbeat_ms or 100.0)
         self.nodes: list[canopen.RemoteNode] = []
         self._index = {0x180 + nid: i for i, nid in enumerate(self.node_ids)}
@@ -83,6 +87,7 @@ class CanopenDriveGroup(DriveGroup):
         self._t0 = None
         self._next = None
         self.missed = 0                 # real time: SYNCs sent later than one period after their deadline
+        self.late_tpdos = 0             # TPDOs that arrived after their cycle was closed (dropped)
         self.sync_times: list[float] = []
         self.keep_sync_times = False
         self._opened = False
@@ -206,6 +211,65 @@ class CanopenDriveGroup(DriveGroup):
             raise Js2Error(f"nodes {missing} sent no heartbeat in OPERATIONAL state after NMT start "
                            f"(within {3 * self.hb_ms:g} ms); check them")
         self._opened = True
+        if self.pump:
+            self._pause_notifier()
+
+    def _pause_notifier(self) -> None:
+        net = self.network
+        if net.notifier is not None and not self._paused:
+            net.notifier.stop(1.0)
+            net.check()
+            net.notifier = None
+            self._paused = True
+
+    def _resume_notifier(self) -> None:
+        net = self.network
+        if self._paused:
+            net.notifier = can.Notifier(net.bus, net.listeners, net.NOTIFIER_CYCLE)
+            net.notifier.add_listener(_ErrorFrameListener(self))
+            self._paused = False
+
+    def _dispatch(self, msg) -> None:
+        if msg.is_error_frame:
+            self.push_event(DriveEvent("fault", f"bus error: error frame received (id 0x{msg.arbitration_id:X})"))
+            return
+        if msg.is_remote_frame:
+            return
+        cid = msg.arbitration_id
+        if cid in self._index:
+            self._on_tpdo(cid, msg.data, msg.timestamp)
+        else:
+            self.network.notify(cid, msg.data, msg.timestamp)
+
+    def _wait_tpdos(self, deadline: float) -> None:
+        if not self._paused:
+            self._done.wait(max(deadline - time.perf_counter(), 0.0))
+            return
+        bus = self.network.bus
+        while not self._done.is_set():
+            rem = deadline - time.perf_counter()
+            if rem <= 0:
+                break
+            msg = bus.recv(rem)
+            if msg is None:
+                break
+            self._dispatch(msg)
+        self._drain()
+
+    def _drain(self, drop_tpdo: bool = False) -> None:
+        """Dispatch what is already waiting (EMCY, heartbeats) without blocking. Before a SYNC, TPDOs still in the
+        queue are late answers to the previous SYNC: dropped (counted), never taken for the new cycle."""
+        if not self._paused:
+            return
+        bus = self.network.bus
+        for _ in range(256):
+            msg = bus.recv(0)
+            if msg is None:
+                break
+            if drop_tpdo and msg.arbitration_id in self._index and not msg.is_error_frame:
+                self.late_tpdos += 1
+                continue
+            self._dispatch(msg)
 
     # ------------------------------------------------------------------ callbacks (notifier thread)
     def _on_tpdo(self, can_id, data, timestamp):
@@ -271,16 +335,17 @@ class CanopenDriveGroup(DriveGroup):
                     _sleep_until(self._next)
                 elif delay < -self.dt:
                     self.missed += 1
+            self._drain(drop_tpdo=True)
             t_sync = time.perf_counter()
             self._send(self._sync_msg)
             if self.keep_sync_times:
                 self.sync_times.append(t_sync)
-            wait = self._next + self.dt * 0.9 - time.perf_counter()
-            self._done.wait(max(wait, 0.0))
+            self._wait_tpdos(self._next + self.dt * 0.9)
             t = t_sync - self._t0
         else:
+            self._drain(drop_tpdo=True)
             self._send(self._sync_msg)
-            self._done.wait(self.lockstep_timeout_s)
+            self._wait_tpdos(time.perf_counter() + self.lockstep_timeout_s)
             t = None
         self._check_heartbeats()
         self._miss = np.where(self._got, 0, self._miss + 1)
@@ -297,6 +362,15 @@ class CanopenDriveGroup(DriveGroup):
                                            f"(none for {1000 * (now - t):.0f} ms, limit {1000 * lim:.0f} ms)", joint=i))
 
     def _set_modes(self, modes) -> None:
+        paused = self._paused
+        self._resume_notifier()          # SDO needs the receive thread
+        try:
+            self._set_modes_sdo(modes)
+        finally:
+            if paused:
+                self._pause_notifier()
+
+    def _set_modes_sdo(self, modes) -> None:
         for i in range(self.n):
             self._sdo_write(i, 0x6060, None, int(modes[i]))
             m = int(self._sdo_read(i, 0x6061))

@@ -174,8 +174,20 @@ class Session:
         raise SessionAbort(f"drives did not reach OPERATION ENABLED within {self.enable_timeout_s:g} s ({states}); "
                            f"check the drives (fault code 0x603F) and the bus")
 
+    def _log_late_events(self) -> None:
+        """Faults reported after the decision to stop (an EMCY behind its TPDO, a heartbeat timing out...)."""
+        for ev in self.g.poll_events():
+            self._event("fault", joint=ev.joint, detail=ev.detail, value=ev.code)
+
     def _stop(self, how: str) -> None:
         """how: 'ramp' (torques ramp to zero, then disable) or 'quick_stop' (drives brake, then disable)."""
+        orig_sync = self._sync
+
+        def _sync_logging():
+            fb = orig_sync()
+            self._log_late_events()
+            return fb
+        self._sync = _sync_logging
         try:
             if how == "ramp" and self.g.sent is not None:
                 tau0 = self.g.sent.target_torque.copy()
@@ -196,6 +208,12 @@ class Session:
                     break
         except Exception as e:  # the bus may be gone: nothing more we can command
             self._event("fault", detail=f"while stopping: {type(e).__name__}: {e}")
+        finally:
+            self._sync = orig_sync
+            try:
+                self._log_late_events()
+            except Exception:
+                pass
 
     # ------------------------------------------------------------------ main
     def run(self) -> SessionResult:
