@@ -1,100 +1,124 @@
-"""Mixed vs simultaneous method on simulator sessions: the paper's Fig. 2 and Fig. 3 and the J_4z / B_4 story.
+"""Mixed vs simultaneous method: the paper's Fig. 2 and Fig. 3 and the J_4z / B_4 comparison, from logs.
 
-    python -m identification.examples.methods_compare [-o OUTDIR]
+    # 1. two simulator sessions through js2-acquire (in-process simulator): nominal, and with axis-4 friction that
+    #    eq. 1 does not have (Stribeck hump + load-dependent Coulomb friction), via a copy of configs/js2 whose
+    #    sim_truth.yaml switches those effects on
+    python -m identification.examples.methods_compare --generate runs/methods_compare
+    # 2. compare (optionally against a truth file of the simulator, for the reader's information only)
+    python -m identification.examples.methods_compare runs/methods_compare/session_nominal.mcap \
+        --truth configs/js2/sim_truth.yaml --figdir docs/img
 
-Generates two sessions with the real trial code (js2io trials on hil_sim.direct.DirectDriveGroup): the nominal
-simulator (friction exactly eq. 1's Coulomb + viscous) and one whose axis-4 friction is what real drives have and
-eq. 1 has not (Stribeck hump at low speed + load-dependent Coulomb friction). Identifies both with both methods and
-prints, with the truth beside them, J_4z (the base parameter holding link 4's inertia about its axis), B_4, f_c4 and
-the motor inertia J_a4; writes Fig. 2 and Fig. 3 as PNG.
+The identification package does not import the simulator or the acquisition code: sessions are made by running the
+``js2-acquire`` command, and the truth file, when given, is only printed beside the estimates.
 """
 from __future__ import annotations
 
 import argparse
+import shutil
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
+import yaml
 
-EFFECTS_AXIS4 = ({"kind": "stribeck", "joints": [3], "velocity": 15.0},
-                 {"kind": "load_dependent_friction", "joints": [3], "coefficient": 0.15})
-
-
-def make_session(path: Path, effects=()) -> Path:
-    from hil_sim.direct import DirectDriveGroup
-    from hil_sim.plant import Plant
-    from js2io.session import run_trials
-    from js2spec.robot import load_robot
-
-    robot = load_robot("js2")
-    plant = Plant(robot, seed=0, effects=[dict(e) for e in effects]) if effects else None
-    with DirectDriveGroup(robot, plant=plant, seed=0) as g:
-        run_trials(g, robot, ["static", "velocity", "acceleration", "validation"], path)
-    return path
+EFFECTS_AXIS4 = [{"kind": "stribeck", "joints": [3], "velocity": 15.0},
+                 {"kind": "load_dependent_friction", "joints": [3], "coefficient": 0.15}]
+PARAMS = ("J_4z", "B_4", "fc_4", "Ja_4")
+CONFIGS = Path(__file__).resolve().parents[2] / "configs" / "js2"
 
 
-def compare(path: Path) -> dict:
-    from hil_sim.truth import load_truth
-    from identification.pipeline import IdentifyOptions, identify, predict_standard, rms_nrms
+def generate(outdir: Path, configs: Path = CONFIGS) -> list[Path]:
+    """Run js2-acquire twice (nominal and axis-4 friction effects); returns the two log paths."""
+    outdir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for key, effects in (("nominal", []), ("axis4", EFFECTS_AXIS4)):
+        folder = Path(tempfile.mkdtemp(prefix=f"js2_{key}_")) / "js2"
+        shutil.copytree(configs, folder)
+        truth = yaml.safe_load((folder / "sim_truth.yaml").read_text())
+        truth["effects"] = effects
+        (folder / "sim_truth.yaml").write_text(yaml.safe_dump(truth, sort_keys=False))
+        out = outdir / f"session_{key}.mcap"
+        cmd = [sys.executable, "-m", "js2io.cli", "--robot", str(folder), "--trial",
+               "static,velocity,acceleration,validation", "--seed", "0", "-o", str(out), "--no-progress"]
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            raise SystemExit(f"methods_compare: js2-acquire failed: {r.stderr.strip()}")
+        paths.append(out)
+        shutil.rmtree(folder.parent, ignore_errors=True)
+    return paths
+
+
+def truth_beta(ident, truth_path: Path) -> np.ndarray:
+    """Base parameters of (URDF inertials + the truth file's drive terms), for printing beside the estimates."""
     from identification.regressor import standard_vector
-    from js2spec.robot import load_robot
+
+    t = yaml.safe_load(Path(truth_path).read_text())
+    pi = standard_vector(ident.arm, motor_inertia=t["motor_inertia"], viscous=t["viscous"], coulomb=t["coulomb"])
+    return ident.bp.beta(pi), pi
+
+
+def compare(path: Path, truth: Path | None = None) -> dict:
+    from identification.pipeline import IdentifyOptions, identify, predict_standard, rms_nrms
 
     ident = identify([path], IdentifyOptions(method="mixed"))
-    tr = load_truth(load_robot("js2"))
-    pi = standard_vector(ident.arm, motor_inertia=tr.motor_inertia, viscous=tr.viscous, coulomb=tr.coulomb)
-    beta_true = ident.bp.beta(pi)
-    out = {"ident": ident, "rows": []}
-    for name in ("J_4z", "B_4", "fc_4", "Ja_4"):
+    bt, pi = truth_beta(ident, truth) if truth else (None, None)
+    rows = []
+    for name in PARAMS:
         i = ident.param_index(name)
-        row = {"param": name, "base": ident.bp.names[i], "truth": beta_true[i]}
+        row = {"param": name, "base": ident.bp.names[i], "truth": None if bt is None else bt[i]}
         for m in ("mixed", "simultaneous"):
-            row[m] = ident.methods[m].beta[i]
-            row[m + "_std"] = ident.methods[m].std[i]
-        out["rows"].append(row)
-    pred, meas = predict_standard(ident, pi)
-    out["rms_truth"] = rms_nrms(pred, meas)[0]
-    out["rms"] = {m: ident.validation[m]["rms"] for m in ("mixed", "simultaneous")}
-    return out
+            row[m], row[m + "_std"] = ident.methods[m].beta[i], ident.methods[m].std[i]
+        rows.append(row)
+    res = {"ident": ident, "rows": rows, "rms": {m: ident.validation[m]["rms"] for m in ("mixed", "simultaneous")}}
+    if pi is not None:
+        pred, meas = predict_standard(ident, pi)
+        res["rms_truth"] = rms_nrms(pred, meas)[0]
+    return res
 
 
 def table(res: dict, title: str) -> str:
     lines = [f"#### {title}\n", "| parameter | truth | mixed | simultaneous |", "|---|---|---|---|"]
     for r in res["rows"]:
-        lines.append(f"| {r['param']} (`{r['base'][:60]}`) | {r['truth']:.4g} | {r['mixed']:.4g} ± "
-                     f"{r['mixed_std']:.1g} | {r['simultaneous']:.4g} ± {r['simultaneous_std']:.1g} |")
-    lines.append("")
-    lines.append("| validation RMS (N·m) axis 1..6 | " + " | ".join(f"{k + 1}" for k in range(6)) + " |")
-    lines.append("|---" * 7 + "|")
+        tr = "—" if r["truth"] is None else f"{r['truth']:.4g}"
+        lines.append(f"| {r['param']} (`{r['base'][:60]}`) | {tr} | {r['mixed']:.4g} ± {r['mixed_std']:.1g} | "
+                     f"{r['simultaneous']:.4g} ± {r['simultaneous_std']:.1g} |")
+    n = len(res["rms"]["mixed"])
+    lines += ["", "| validation RMS (N·m) | " + " | ".join(f"axis {k + 1}" for k in range(n)) + " |",
+              "|---" * (n + 1) + "|"]
     for m in ("mixed", "simultaneous"):
         lines.append(f"| {m} | " + " | ".join(f"{x:.3g}" for x in res["rms"][m]) + " |")
-    lines.append("| true parameters, same filters | " + " | ".join(f"{x:.3g}" for x in res["rms_truth"]) + " |")
+    if "rms_truth" in res:
+        lines.append("| truth's drive terms, same filters | " + " | ".join(f"{x:.3g}" for x in res["rms_truth"]) + " |")
     return "\n".join(lines)
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("-o", "--outdir", type=Path, default=Path("runs/methods_compare"))
-    p.add_argument("--figdir", type=Path, default=None, help="also write fig2/fig3 PNGs here")
+    p.add_argument("logs", nargs="*", type=Path, help="session logs to compare (one table each)")
+    p.add_argument("--generate", type=Path, metavar="OUTDIR", help="make the two simulator sessions first")
+    p.add_argument("--truth", type=Path, help="simulator truth file to print beside the estimates")
+    p.add_argument("--figdir", type=Path, help="write fig2_<log>.png and fig3_<log>.png here")
     a = p.parse_args(argv)
-    a.outdir.mkdir(parents=True, exist_ok=True)
+    logs = list(a.logs)
+    if a.generate:
+        logs += generate(a.generate)
+    if not logs:
+        p.error("give logs or --generate OUTDIR")
     from identification.report import _plt, fig2, fig3
 
-    results = {}
-    for key, eff, title in (("nominal", (), "nominal simulator (friction = eq. 1)"),
-                            ("axis4", EFFECTS_AXIS4, "axis-4 friction beyond eq. 1 (Stribeck + load-dependent)")):
-        path = make_session(a.outdir / f"session_{key}.mcap", eff)
-        res = compare(path)
-        results[key] = res
-        print(table(res, title))
+    for log in logs:
+        res = compare(log, a.truth)
+        print(table(res, log.name))
         print()
-        if a.figdir is not None:
+        if a.figdir:
             a.figdir.mkdir(parents=True, exist_ok=True)
             plt = _plt()
-            f = fig2(res["ident"])
-            f.savefig(a.figdir / f"fig2_{key}.png", dpi=80, bbox_inches="tight")
-            plt.close(f)
-            f = fig3(res["ident"])
-            f.savefig(a.figdir / f"fig3_{key}.png", dpi=80, bbox_inches="tight")
-            plt.close(f)
+            for tag, f in (("fig2", fig2(res["ident"])), ("fig3", fig3(res["ident"]))):
+                if f is not None:
+                    f.savefig(a.figdir / f"{tag}_{log.stem}.png", dpi=80, bbox_inches="tight")
+                    plt.close(f)
     return 0
 
 
