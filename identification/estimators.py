@@ -66,9 +66,10 @@ class RecursiveLeastSquares:
         if self.P0 is not None:
             P0 = np.asarray(self.P0, float)
         else:
-            rows = H.reshape(-1, p)
-            ww = w.reshape(-1)
-            s = np.sqrt(np.sum(ww[:, None] * rows ** 2, axis=0) / max(ww.sum(), 1.0))
+            ss = np.zeros(p)
+            for c0 in range(0, len(H), 8192):
+                ss += np.einsum("sm,smp->p", w[c0:c0 + 8192], H[c0:c0 + 8192] ** 2)
+            s = np.sqrt(ss / max(w.sum(), 1.0))
             s = np.where(s > 0, s, 1.0)
             P0 = np.diag(self.p0 / s ** 2)
         th0 = np.zeros(p) if self.theta0 is None else np.asarray(self.theta0, float)
@@ -189,14 +190,21 @@ class BatchLeastSquares:
 
     @staticmethod
     def _solve(H, y, w):
-        """Weighted normal equations on column-normalised rows (Cholesky; pseudo-inverse if rank-deficient)."""
+        """Weighted normal equations on column-normalised rows (Cholesky; pseudo-inverse if rank-deficient),
+        accumulated over sample chunks (no full copy of the weighted regressor)."""
         p = H.shape[-1]
-        sq = np.sqrt(w)
-        A = (H * sq[:, :, None]).reshape(-1, p)
-        b = (y * sq).reshape(-1)
-        n_rows = int(np.sum(np.any(A != 0, axis=1)))
-        G = A.T @ A
-        g = A.T @ b
+        G = np.zeros((p, p))
+        g = np.zeros(p)
+        bb = 0.0
+        n_rows = 0
+        for c0 in range(0, len(H), 8192):
+            sq = np.sqrt(w[c0:c0 + 8192])
+            A = (H[c0:c0 + 8192] * sq[:, :, None]).reshape(-1, p)
+            b = (y[c0:c0 + 8192] * sq).reshape(-1)
+            G += A.T @ A
+            g += A.T @ b
+            bb += float(b @ b)
+            n_rows += int(np.sum(np.any(A != 0, axis=1)))
         d = np.sqrt(np.diag(G))
         d = np.where(d > 0, d, 1.0)
         Gn = G / np.outer(d, d)
@@ -205,7 +213,7 @@ class BatchLeastSquares:
         except np.linalg.LinAlgError:
             Ginv = np.linalg.pinv(Gn)
         coef = (Ginv @ (g / d)) / d
-        rss = float(b @ b - 2 * coef @ g + coef @ G @ coef)
+        rss = float(bb - 2 * coef @ g + coef @ G @ coef)
         dof = max(n_rows - p, 1)
         sig = max(rss, 0.0) / dof
         cov = Ginv / np.outer(d, d)

@@ -204,9 +204,12 @@ def _regressor_rows(arm, bp, sig, idx, offsets, progress=None):
             c1 = min(c0 + step, hi - lo)
             Wb[c0:c1] = bp.project(build_regressor(arm, q[c0:c1], dq[c0:c1], ddq[c0:c1], offsets=offsets,
                                                    velocity_for_sign=None))
-        Wf = sg._lp_runs(Wb.reshape(len(Wb), -1), sig.settings.fc_acceleration_hz, fs, sig.settings.order,
-                         [(0, hi - lo)]).reshape(Wb.shape)
-        del Wb
+        # the torque's filter on every column (parallel filtering), a block of columns at a time (memory)
+        flat = Wb.reshape(len(Wb), -1)
+        for k0 in range(0, flat.shape[1], 48):
+            flat[:, k0:k0 + 48] = sg._lp_runs(flat[:, k0:k0 + 48], sig.settings.fc_acceleration_hz, fs,
+                                              sig.settings.order, [(0, hi - lo)])
+        Wf = Wb
         rel = inside - lo
         where = np.searchsorted(idx, inside)
         out_W[where] = Wf[rel]
@@ -397,7 +400,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
             free = np.arange(bp.n)
             fixed_idx = np.array([], int)
             y = Y
-        H = W[:, :, free]
+        H = W if len(free) == bp.n else W[:, :, free]
         corr = sigs[0].fs / (2 * opt.filters.fc_acceleration_hz)
         rls = RecursiveLeastSquares(n_iter=opt.n_iter, correlation_length=corr).fit(
             H, y, wts, progress=_progress(prog, f"RLS {name}"))
