@@ -48,6 +48,7 @@ class IdentifyOptions:
                                              # are left out of the dynamic fit (stiction zone, eq. 1 has sgn only)
     fig3: tuple = ("J_4z", "B_4", "fc_4")    # parameters whose RLS convergence is plotted (Fig. 3)
     physical: bool = True
+    prior_weight: float = 1.0                # pull of the URDF in the physically consistent fit (see consistency.py)
     progress: bool = False
     validate_paths: tuple = ()               # extra held-out logs
 
@@ -426,14 +427,17 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
     if opt.physical:
         mr = methods[chosen]
         Hn = W.reshape(-1, bp.n) * np.sqrt(wts.reshape(-1, 1))
-        gram = Hn.T @ Hn / max(mr.rls.sigma2_, 1e-30)
+        # information of the data, with the same correction for filtered (correlated) rows as the standard errors
+        corr = sigs[0].fs / (2 * opt.filters.fc_acceleration_hz)
+        gram = Hn.T @ Hn / max(mr.rls.sigma2_ * corr, 1e-30)
         p = len(bp.std_names)
         fixed_std = np.full(p, np.nan)
         # friction standard values = the chosen method's friction base parameters
         for i in fr:
             fixed_std[bp.std_names.index(bp.lead(i))] = mr.beta[i]
         try:
-            phys = PhysicalConsistencyFit().fit(bp.E, mr.beta, gram, arm.nominal_inertial, n, groups["motor"],
+            phys = PhysicalConsistencyFit(prior_weight=opt.prior_weight).fit(
+                bp.E, mr.beta, gram, arm.nominal_inertial, n, groups["motor"],
                                                 fixed_std)
         except np.linalg.LinAlgError as exc:
             notes.append(f"physically consistent fit failed ({exc})")

@@ -66,6 +66,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--fig3", default="J_4z,B_4,fc_4",
                    help="parameters plotted in Fig. 3 (paper's J_<i>z, or standard names such as Ja_2, B_4, fc_4, "
                         "Ixx_link4)")
+    p.add_argument("--prior-weight", type=float, default=1.0,
+                   help="how strongly the physically consistent model is pulled toward the URDF's inertials where "
+                        "the data are weak (default 1; 0 = data only)")
     p.add_argument("--max-cond", type=float, default=None, help="verdict threshold on the condition number")
     p.add_argument("--max-nrms", type=float, default=None, help="verdict threshold on validation NRMS per axis (0.1 = 10%%)")
     p.add_argument("--strict", action="store_true", help="exit 1 when the verdict fails")
@@ -90,7 +93,7 @@ def main(argv=None) -> int:
             validation_trials=tuple(t.strip() for t in args.validation_trials.split(",") if t.strip()),
             holdout=args.holdout, offsets=args.offsets,
             fig3=tuple(t.strip() for t in args.fig3.split(",") if t.strip()),
-            progress=not args.quiet, validate_paths=tuple(args.validate))
+            progress=not args.quiet, validate_paths=tuple(args.validate), prior_weight=args.prior_weight)
         ident = identify(args.logs, opt)
         for name in opt.fig3:
             ident.param_index(name)
