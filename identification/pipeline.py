@@ -26,7 +26,7 @@ from . import signals as sg
 from .base import BaseParameters, base_parameters, condition_number, friction_mask
 from .consistency import PhysicalConsistencyFit
 from .estimators import BatchLeastSquares, RecursiveLeastSquares
-from .regressor import ArmModel, arm_model, build_regressor, column_groups, standard_names
+from .regressor import ArmModel, arm_model, build_regressor, column_groups
 from .sequential import ConstantVelocityTest, StaticFrictionTest
 from .trials import TrialSpan, breakaways, trial_spans, velocity_segments
 

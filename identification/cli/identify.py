@@ -134,7 +134,6 @@ def main(argv=None) -> int:
 
 
 def summary(ident, v, out) -> str:
-    import numpy as np
 
     ja, _, alone = ident.motor_inertia()
     lines = [f"method: {ident.chosen}   base parameters: {ident.bp.n}   condition number: {ident.condition_number:.3g}"
