@@ -123,7 +123,7 @@ def main(argv=None) -> int:
         print(f"js2-identify: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     if not args.quiet:
-        print(summary(ident, v, out))
+        print(summary(ident, v, out, report=not args.no_report))
     for note in ident.notes:
         if "truncated" in note:
             print(f"js2-identify: note: {note}", file=sys.stderr)
@@ -133,22 +133,26 @@ def main(argv=None) -> int:
     return 0
 
 
-def summary(ident, v, out) -> str:
+def _g(x) -> str:
+    return f"{x:10.4g}" if x == x else f"{'—':>10}"     # NaN (not measured) as a dash
+
+
+def summary(ident, v, out, report: bool = True) -> str:
 
     ja, _, alone = ident.motor_inertia()
     lines = [f"method: {ident.chosen}   base parameters: {ident.bp.n}   condition number: {ident.condition_number:.3g}"
              f"   fit samples: {ident.n_fit_samples}"]
     lines.append(f"{'axis':>6} {'f_s':>10} {'f_c':>10} {'B':>10} {'J_a':>10} {'val RMS':>10} {'NRMS':>7}")
     for k, j in enumerate(ident.arm.joints):
-        lines.append(f"{j:>6} {ident.friction_static[k]:10.4g} {ident.friction_coulomb[k]:10.4g} "
-                     f"{ident.friction_viscous[k]:10.4g} {ja[k]:10.4g}{'' if alone[k] else '*'} "
-                     f"{ident.validation['rms'][k]:10.4g} {100 * ident.validation['nrms'][k]:6.2f}%")
+        lines.append(f"{j:>6} {_g(ident.friction_static[k])} {_g(ident.friction_coulomb[k])} "
+                     f"{_g(ident.friction_viscous[k])} {_g(ja[k])}{'' if alone[k] else '*'} "
+                     f"{_g(ident.validation['rms'][k])} {100 * ident.validation['nrms'][k]:6.2f}%")
     if not all(alone):
         lines.append("  * J_a regrouped with link inertias (see model.yaml motor_inertia_separately_identified)")
     for n in ident.notes:
         lines.append(f"note: {n}")
-    lines.append(f"verdict: {'PASS' if v['pass'] else 'FAIL'}   ->  {out}/model.yaml, robot_identified.urdf, "
-                 f"report.html, verdict.json")
+    files = "model.yaml, robot_identified.urdf, " + ("report.html, " if report else "") + "verdict.json"
+    lines.append(f"verdict: {'PASS' if v['pass'] else 'FAIL'}   ->  {out}/ {files}")
     return "\n".join(lines)
 
 
