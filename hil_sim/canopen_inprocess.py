@@ -19,7 +19,7 @@ from js2spec.errors import Js2Error
 
 class InProcessCanopen:
     def __init__(self, robot, *, cycle_hz: float | None = None, seed: int = 0, faults=None, realtime: bool = False,
-                 sim_realtime: bool | None = None, q0=None, lockstep_timeout_s: float = 0.25):
+                 sim_realtime: bool | None = None, q0=None, lockstep_timeout_s: float = 0.5):
         self.robot = robot
         self.channel = f"js2-{os.getpid()}-{time.monotonic_ns()}"
         cycle_hz = cycle_hz or robot.drives.cycle_hz or 500.0

@@ -54,7 +54,7 @@ class _ErrorFrameListener(can.Listener):
 
 class CanopenDriveGroup(DriveGroup):
     def __init__(self, drives, network: canopen.Network, eds_path, *, cycle_hz: float | None = None,
-                 realtime: bool = False, lockstep_timeout_s: float = 0.25, master_node_id: int = 0x7F,
+                 realtime: bool = False, lockstep_timeout_s: float = 0.5, master_node_id: int = 0x7F,
                  sdo_timeout_s: float = 0.5, pump: bool = True):
         super().__init__(drives, cycle_hz)
         self.network = network

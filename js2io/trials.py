@@ -173,23 +173,26 @@ class Tracker:
         self.was_open: set[int] = set()
 
     def observe(self, fb: Feedback) -> None:
-        """Velocity from encoder differences; a lost (stale) reading is skipped, the next valid one spans the gap."""
+        """Velocity from encoder differences; a lost (stale) reading is skipped, the next valid one spans the gap,
+        and meanwhile the position is extrapolated (a stale position against a moving reference would kick)."""
         q = fb.motor_position
         if self.q is None:
             self.q = q.copy()
+            self.q_now = q.copy()
             self._k = np.full(self.ctx.n, fb.cycle)
             return
         ok = np.asarray(fb.valid, dtype=bool)
+        gap = np.maximum(fb.cycle - self._k, 1) * self.ctx.dt
         if ok.any():
-            gap = np.maximum(fb.cycle - self._k, 1) * self.ctx.dt
             v_raw = (q - self.q) / gap
             self.v = np.where(ok, self.v + self.alpha * (v_raw - self.v), self.v)
             self.q = np.where(ok, q, self.q)
             self._k = np.where(ok, fb.cycle, self._k)
+        self.q_now = np.where(ok, self.q, self.q + self.v * gap)
 
     def command(self, ref: Ref) -> np.ndarray:
         c = self.ctx
-        e = ref.q - self.q
+        e = ref.q - self.q_now
         tau_pd = c.kp * e + c.kd * (ref.dq - self.v)
         for i in self.was_open - set(ref.open_loop):
             self.integ[i] = self.last_tau[i] - tau_pd[i]   # bumpless: continue from the open-loop torque
@@ -253,7 +256,7 @@ class Trial:
             opened = dict(ref.open_loop)
             for i in ref.csv:
                 mode[i] = MODE_CSV
-                vel[i] = ref.dq[i] + self.csv_kpos * (ref.q[i] - self.tracker.q[i])
+                vel[i] = ref.dq[i] + self.csv_kpos * (ref.q[i] - self.tracker.q_now[i])
                 opened[i] = float(fb.torque[i])
             ref = Ref(ref.q, ref.dq, opened)
         tau = self.tracker.command(ref)

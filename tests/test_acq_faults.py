@@ -57,7 +57,7 @@ def _assert_disabled(sim_set, skip=()):
 
 def _run_can(tmp_path, cfg, faults=(), hook=None, trials=("excitation",), max_lost=10):
     path = tmp_path / "f.mcap"
-    with InProcessCanopen(ROBOT, faults=list(faults), lockstep_timeout_s=0.05) as rig:
+    with InProcessCanopen(ROBOT, faults=list(faults)) as rig:
         res = run_trials(rig.group, ROBOT, list(trials), path, trials_config=cfg, session_hook=hook,
                          max_consecutive_lost=max_lost)
         states = [c.state for c in rig.sim.set.cores]
@@ -88,7 +88,7 @@ def test_bus_error_drives_quick_stop_without_master(tmp_path, cfg):
     """After a bus-off the master's heartbeat no longer reaches the drives: they quick-stop by themselves."""
     import time
     path = tmp_path / "b.mcap"
-    with InProcessCanopen(ROBOT, faults=["bus_error@300"], lockstep_timeout_s=0.05) as rig:
+    with InProcessCanopen(ROBOT, faults=["bus_error@300"]) as rig:
         res = run_trials(rig.group, ROBOT, ["excitation"], path, trials_config=cfg)
         # the simulated drives' own view: after bus-off nothing more arrives; quick stop after 3 x heartbeat
         rig.group.stop_heartbeat()
