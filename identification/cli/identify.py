@@ -122,6 +122,9 @@ def main(argv=None) -> int:
     except OSError as exc:
         print(f"js2-identify: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("js2-identify: interrupted", file=sys.stderr)
+        return 130
     if not args.quiet:
         print(summary(ident, v, out, report=not args.no_report))
     for note in ident.notes:
