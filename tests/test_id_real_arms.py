@@ -65,3 +65,13 @@ def test_kuka_identified_and_validated_on_another_trajectory(kuka):
     assert np.sum(phys <= cad) >= 4 and phys.mean() < cad.mean() and np.all(phys < 1.5 * cad), (phys, cad)
     assert np.all(phys < 1.0)
     assert ident.physical.physical_.all()
+
+
+def test_logs_of_different_arms_are_refused_with_one_message(tx40, kuka, tmp_path, capsys):
+    from identification.cli.identify import main
+
+    a, b = tx40["ident"].logs[0].path, kuka["ident"].logs[0].path
+    rc = main([str(a), "--validate", str(b), "-o", str(tmp_path / "o"), "-q", "--method", "simultaneous",
+               "--fit-trials", "excitation"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and str(b) in err and "different arm" in err
