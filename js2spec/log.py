@@ -257,8 +257,8 @@ class Js2Log:
     drives_yaml: str
     drives: DrivesConfig
     feedback: FeedbackArrays
-    command: CommandArrays | None
-    events: list[dict]
+    command_raw: list[bytes] = field(repr=False)   # /js2/command payloads, decoded on first use of .command
+    events: list[dict] = field(default_factory=list)
     attachments: dict[str, bytes] = field(default_factory=dict)
     truncated: bool = False
     recovered_note: str = ""
@@ -268,6 +268,14 @@ class Js2Log:
     @property
     def robot(self) -> str:
         return self.meta.get("robot", "")
+
+    @property
+    def command(self) -> CommandArrays | None:
+        """The /js2/command channel as arrays (None if the log has none); decoded lazily: identification rarely needs it."""
+        if not hasattr(self, "_command"):
+            self._command = (_command_arrays(self.path, self.command_raw, self.drives.n)
+                             if self.command_raw else None)
+        return self._command
 
     @property
     def cycle_hz(self) -> float:
@@ -402,7 +410,6 @@ def read_log(path: str | Path) -> Js2Log:
     n = drives.n
     warnings: list[str] = []
     feedback = _feedback_arrays(path, msgs[TOPIC_FEEDBACK], n, drives.torque_side, warnings)
-    command = _command_arrays(path, msgs[TOPIC_COMMAND], n) if msgs[TOPIC_COMMAND] else None
     events = []
     for raw in msgs[TOPIC_EVENT]:
         try:
@@ -419,7 +426,7 @@ def read_log(path: str | Path) -> Js2Log:
                 f"({feedback.t[-1] if len(feedback) else 0:.3f} s) and {len(events)} events up to the last complete "
                 f"chunk")
     return Js2Log(path=path, meta=meta, urdf_text=attachments["robot.urdf"].decode(), drives_yaml=drives_yaml,
-                  drives=drives, feedback=feedback, command=command, events=events, attachments=attachments,
+                  drives=drives, feedback=feedback, command_raw=msgs[TOPIC_COMMAND], events=events, attachments=attachments,
                   truncated=truncated, recovered_note=note, warnings=warnings, sha256=file_sha256(path))
 
 
