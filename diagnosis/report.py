@@ -2,9 +2,7 @@
 ``effects.yaml`` (the found effects in ``hil_sim`` format) and ``report.html`` (figures inline)."""
 from __future__ import annotations
 
-import base64
 import html
-import io
 import json
 import shutil
 from pathlib import Path
@@ -12,25 +10,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from identification.report import png_base64, pyplot
+
 from .run import DiagnosisResult
 
 FRICTION_KINDS = {"stribeck", "asymmetric_friction", "thermal_drift", "load_dependent_friction"}
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _png(fig) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=85, bbox_inches="tight")
-    _plt().close(fig)
-    return base64.b64encode(buf.getvalue()).decode()
 
 
 def _jsonable(x):
@@ -50,7 +34,7 @@ def _jsonable(x):
 
 
 def fig_rms(res: DiagnosisResult):
-    plt = _plt()
+    plt = pyplot()
     d = res.to_dict()["holdout_rms"]
     n = len(d["before"])
     fig, ax = plt.subplots(figsize=(7, 3))
@@ -67,7 +51,7 @@ def fig_rms(res: DiagnosisResult):
 def fig_finding(res: DiagnosisResult, k: int):
     """Held-out torque of the finding's main motor (measured, model, model + terms) and the residual against the
     finding's natural axis, before and after."""
-    plt = _plt()
+    plt = pyplot()
     rd = res.rd
     sc = res.accepted[k]
     f = sc.fitted
@@ -131,9 +115,9 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
     paths["effects"].write_text("# effects the diagnosis found; simulate them with hil_sim (sim_truth.yaml "
                                 "`effects:` or Plant(effects=...))\n"
                                 + yaml.safe_dump({"effects": _jsonable(res.sim_effects())}, sort_keys=False))
-    figs = [("Held-out residual per motor", _png(fig_rms(res)))]
+    figs = [("Held-out residual per motor", png_base64(fig_rms(res)))]
     for k in range(len(res.accepted)):
-        figs.append((f"Finding {k + 1}", _png(fig_finding(res, k))))
+        figs.append((f"Finding {k + 1}", png_base64(fig_finding(res, k))))
     rows = [[f["kind"], f["joint"], _g(f["hyper"]), f"{f['holdout_gain']:.1%}", f"{f['fit_gain']:.1%}",
              f["summary"]] for f in d["findings"]]
     cand = [[c["kind"], c["joint"], _g(c["hyper"]), f"{c['holdout_gain_all']:.1%}", f"{c['holdout_gain']:.1%}",

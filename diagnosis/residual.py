@@ -15,6 +15,7 @@ import numpy as np
 
 from identification.regressor import arm_model, build_regressor, standard_vector
 from identification.signals import FilterSettings, Signals, from_log
+from identification.trials import trial_spans
 from js2spec.errors import Js2Error
 from js2spec.model import IdentifiedModel
 
@@ -75,18 +76,11 @@ class ResidualData:
 
 
 def _trial_rows(log, t: np.ndarray, trial: str) -> np.ndarray:
+    """Rows of the signal grid inside the spans of ``trial``."""
     rows = np.zeros(len(t), dtype=bool)
-    start = None
-    for e in log.events:
-        if e.get("trial") != trial:
-            continue
-        if e["kind"] == "trial_start":
-            start = e["t"]
-        elif e["kind"] == "trial_end" and start is not None:
-            rows |= (t >= start) & (t <= e["t"])
-            start = None
-    if start is not None:
-        rows |= t >= start
+    for span in trial_spans(log.events, float(t[-1])):
+        if span.name == trial:
+            rows |= (t >= span.t0) & (t <= span.t1)
     return rows
 
 

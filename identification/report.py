@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 
-def _plt():
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (no display needed)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -23,16 +24,17 @@ def _plt():
     return plt
 
 
-def _png(fig) -> str:
+def png_base64(fig) -> str:
+    """The figure as a base64 PNG for an inline <img> (the figure is closed)."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    _plt().close(fig)
+    pyplot().close(fig)
     return base64.b64encode(buf.getvalue()).decode()
 
 
 def fig2(ident, axes=None):
     """The paper's Fig. 2 for every axis with a constant-velocity test. Returns a matplotlib Figure or None."""
-    plt = _plt()
+    plt = pyplot()
     vt = ident.velocity
     if vt is None or not vt.axes_:
         return None
@@ -64,7 +66,7 @@ def fig2(ident, axes=None):
 
 def fig3(ident, params=None):
     """The paper's Fig. 3: RLS convergence of the chosen parameters under both methods."""
-    plt = _plt()
+    plt = pyplot()
     params = list(params or ident.options.fig3)
     fig, axs = plt.subplots(len(params), 1, figsize=(7, 2.3 * len(params)), squeeze=False)
     for a, name in zip(axs[:, 0], params):
@@ -90,7 +92,7 @@ def fig3(ident, params=None):
 
 
 def fig_validation(ident):
-    plt = _plt()
+    plt = pyplot()
     v = ident.validation
     Y = v["measured"]
     P = v[ident.chosen]["pred"]
@@ -128,9 +130,9 @@ def write_report(ident, outdir: Path, verdict: dict | None = None) -> Path:
     figs = []
     f2 = fig2(ident)
     if f2 is not None:
-        figs.append(("Fig. 2 — constant-velocity test per axis", _png(f2)))
-    figs.append(("Fig. 3 — RLS convergence, mixed vs simultaneous", _png(fig3(ident))))
-    figs.append(("Validation", _png(fig_validation(ident))))
+        figs.append(("Fig. 2 — constant-velocity test per axis", png_base64(f2)))
+    figs.append(("Fig. 3 — RLS convergence, mixed vs simultaneous", png_base64(fig3(ident))))
+    figs.append(("Validation", png_base64(fig_validation(ident))))
     arm = ident.arm
     ja, ja_sd, alone = ident.motor_inertia()
     sd = ident.static_per_direction or {}

@@ -5,6 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from js2spec.log import segments
+
 from .sequential import Breakaway, VelocitySegment
 
 
@@ -27,24 +29,6 @@ def trial_spans(events: list[dict], t_end: float, log_index: int = 0) -> list[Tr
     for name, t0 in open_.items():
         out.append(TrialSpan(name, t0, t_end, log_index))
     return sorted(out, key=lambda s: s.t0)
-
-
-def segments(events: list[dict], trial: str, t_end: float) -> list[tuple[dict, float]]:
-    """(segment_start event, end time) of one trial."""
-    out, open_ = [], None
-    for e in events:
-        if e.get("trial") != trial:
-            continue
-        if e["kind"] == "segment_start":
-            if open_ is not None:
-                out.append((open_, e["t"]))
-            open_ = e
-        elif e["kind"] == "segment_end" and open_ is not None:
-            out.append((open_, e["t"]))
-            open_ = None
-    if open_ is not None:
-        out.append((open_, t_end))
-    return out
 
 
 def _pose_key(pose) -> tuple:
