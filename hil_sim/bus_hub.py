@@ -20,6 +20,8 @@ import time
 import tty
 from collections import deque
 
+import can
+
 log = logging.getLogger(__name__)
 
 
@@ -35,7 +37,7 @@ class _Endpoint:
         self.dropped = 0
         self.rx_frames = 0
         self.tx_frames = 0
-        self.active = kind == "slcan"   # socketcand: only after rawmode
+        self.active = kind in ("slcan", "local")   # socketcand: only after rawmode
 
     def queue(self, data: bytes) -> None:
         if len(self.out) >= self.max_queue:
@@ -66,6 +68,28 @@ class CanHub:
         os.set_blocking(self._wake_r, False)
         self.sel.register(self._wake_r, selectors.EVENT_READ, "wake")
         self._ptys: list[tuple[int, int]] = []
+        self._lock = threading.RLock()
+        self._next_local = -1
+
+    # ------------------------------------------------------------------ in-process endpoint
+    def local_bus(self, name: str = "local") -> "LocalHubBus":
+        """A python-can bus attached to the hub inside this process (no TCP, no text protocol): what js2-sim's own
+        drives use, so the simulator process spends its time on the drives, not on the transport."""
+        with self._lock:
+            key = self._next_local
+            self._next_local -= 1
+            ep = _Endpoint(self, "local", name, self.max_queue)
+            bus = LocalHubBus(self, key, ep)
+            ep.bus = bus
+            self.endpoints[key] = ep
+        return bus
+
+    def inject(self, key: int, cid: int, ext: bool, payload: bytes, error: bool = False) -> None:
+        with self._lock:
+            ep = self.endpoints.get(key)
+            if ep is not None:
+                ep.rx_frames += 1
+            self._broadcast(key, cid, ext, payload, error)
 
     # ------------------------------------------------------------------ endpoints
     def add_slcan_pty(self) -> str:
@@ -99,8 +123,9 @@ class CanHub:
             pass
         if self._thread is not None:
             self._thread.join(timeout=2.0)
-        for fd in list(self.endpoints):
-            self._close(fd)
+        with self._lock:
+            for fd in list(self.endpoints):
+                self._close(fd)
         for m, s in self._ptys:
             for fd in (s,):
                 try:
@@ -113,7 +138,8 @@ class CanHub:
         while not self._stop.is_set():
             for key, mask in self.sel.select(timeout=0.5):
                 if key.data is None:
-                    self._accept()
+                    with self._lock:
+                        self._accept()
                 elif key.data == "wake":
                     try:
                         os.read(self._wake_r, 64)
@@ -121,10 +147,11 @@ class CanHub:
                         pass
                 else:
                     fd = key.fd if isinstance(key.fileobj, int) else key.fileobj.fileno()
-                    if mask & selectors.EVENT_READ:
-                        self._read(fd)
-                    if mask & selectors.EVENT_WRITE and fd in self.endpoints:
-                        self._flush(fd)
+                    with self._lock:
+                        if mask & selectors.EVENT_READ:
+                            self._read(fd)
+                        if mask & selectors.EVENT_WRITE and fd in self.endpoints:
+                            self._flush(fd)
 
     def _accept(self) -> None:
         try:
@@ -151,7 +178,7 @@ class CanHub:
 
     def _close(self, fd) -> None:
         ep = self.endpoints.pop(fd, None)
-        if ep is None:
+        if ep is None or ep.kind == "local":
             return
         try:
             self.sel.unregister(ep.sock if ep.kind == "socketcand" else fd)
@@ -245,7 +272,7 @@ class CanHub:
             self._flush(fd)
         ep.inbuf = buf
 
-    def _broadcast(self, src_fd, cid: int, ext: bool, payload: bytes) -> None:
+    def _broadcast(self, src_fd, cid: int, ext: bool, payload: bytes, error: bool = False) -> None:
         self.frames += 1
         ts = time.time()
         sc = None
@@ -253,11 +280,17 @@ class CanHub:
         for fd, ep in list(self.endpoints.items()):
             if fd == src_fd or not ep.active:
                 continue
+            if ep.kind == "local":
+                ep.bus._deliver(cid, ext, payload, ts, error)
+                continue
             if ep.kind == "socketcand":
                 if sc is None:
                     ids = f"{cid:08X}" if ext else f"{cid:03X}"
-                    sc = f"< frame {ids} {ts:.6f} {payload.hex().upper()} >".encode()
+                    sc = (f"< error {cid & 0x1FFFFFFF:08X} {ts:.6f} >" if error else
+                          f"< frame {ids} {ts:.6f} {payload.hex().upper()} >").encode()
                 ep.queue(sc)
+            elif error:
+                continue      # slcan has no error frames
             else:
                 if sl is None:
                     sl = (f"T{cid:08X}" if ext else f"t{cid:03X}") .encode() + f"{len(payload)}".encode() + \
@@ -294,3 +327,43 @@ class CanHub:
             self.sel.modify(ep.sock if ep.kind == "socketcand" else fd, want, ep)
         except (KeyError, ValueError):
             pass
+
+
+class LocalHubBus(can.BusABC):
+    """python-can bus for an endpoint of a CanHub in the same process (see CanHub.local_bus)."""
+
+    def __init__(self, hub: CanHub, key: int, ep: _Endpoint, **kwargs):
+        self.hub = hub
+        self.key = key
+        self.ep = ep
+        self._q: deque = deque()
+        self._cv = threading.Condition()
+        self.channel_info = f"js2 hub (in-process endpoint of 127.0.0.1:{hub.port})"
+        super().__init__(channel="js2-hub-local", **kwargs)
+
+    def _deliver(self, cid, ext, payload, ts, error) -> None:
+        with self._cv:
+            if len(self._q) >= self.ep.max_queue:
+                self._q.popleft()
+                self.ep.dropped += 1
+            self._q.append((cid, ext, payload, ts, error))
+            self.ep.tx_frames += 1
+            self._cv.notify()
+
+    def send(self, msg: can.Message, timeout=None) -> None:
+        self.hub.inject(self.key, msg.arbitration_id, msg.is_extended_id, bytes(msg.data), msg.is_error_frame)
+
+    def _recv_internal(self, timeout):
+        with self._cv:
+            if not self._q:
+                self._cv.wait(timeout)
+            if not self._q:
+                return None, False
+            cid, ext, payload, ts, error = self._q.popleft()
+        return can.Message(arbitration_id=cid, is_extended_id=ext, data=payload, timestamp=ts, is_rx=True,
+                           is_error_frame=error), False
+
+    def shutdown(self) -> None:
+        with self.hub._lock:
+            self.hub.endpoints.pop(self.key, None)
+        super().shutdown()

@@ -82,10 +82,10 @@ def _run(args) -> int:
             hub = CanHub(port=args.port).start()
         except OSError as e:
             raise Js2Error(f"cannot listen on 127.0.0.1:{args.port}: {e}; choose another --port (0 = any)") from None
-        kw = {"interface": "socketcand", "channel": args.channel_name, "host": "127.0.0.1", "port": hub.port,
-              "tcp_tune": True}
+        kw = None
         where = f"socketcand hub 127.0.0.1:{hub.port}"
-    bus = open_bus(kw)
+    # the drives sit on the hub in-process (no TCP for them); clients come in over socketcand/slcan
+    bus = hub.local_bus("js2-sim drives") if hub is not None else open_bus(kw)
     sim = CanopenSimulator(robot, bus, cycle_hz=args.cycle_hz, seed=args.seed, faults=faults,
                            realtime=args.realtime, q0=q0)
     stop = threading.Event()

@@ -334,7 +334,11 @@ class CanopenDriveGroup(DriveGroup):
                 if delay > 0:
                     _sleep_until(self._next)
                 elif delay < -self.dt:
-                    self.missed += 1
+                    # overrun by more than a period: skip the lost deadlines (counted) and re-anchor, rather than
+                    # a catch-up burst of SYNCs that the drives cannot answer in time
+                    skipped = int(-delay / self.dt)
+                    self.missed += skipped
+                    self._next += skipped * self.dt
             self._drain(drop_tpdo=True)
             t_sync = time.perf_counter()
             self._send(self._sync_msg)
