@@ -41,8 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="trial(s) to fit the candidate terms on (repeatable; default: excitation, else the rest)")
     p.add_argument("--kinds", nargs="+", choices=KINDS, metavar="KIND",
                    help=f"candidate kinds to try (default: all: {', '.join(KINDS)})")
-    p.add_argument("--min-gain", type=float, default=0.15,
-                   help="held-out (and fit) residual reduction a term must reach on its motors (default 0.15)")
+    p.add_argument("--min-gain", type=float, default=0.12,
+                   help="held-out (and fit) residual reduction a term must reach on its motors (default 0.12)")
     p.add_argument("--max-terms", type=int, default=3, help="most terms to accept (default 3)")
     p.add_argument("--min-speed", type=float, default=1.0,
                    help="rad/s at the motor: slower samples are left out, friction being undefined at rest "

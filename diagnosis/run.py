@@ -18,7 +18,7 @@ class DiagnoseOptions:
     holdout_trial: str = "validation"
     fit_trials: list[str] | None = None
     kinds: list[str] | None = None
-    min_gain: float = 0.15
+    min_gain: float = 0.12
     max_terms: int = 3
     min_speed: float = 1.0          # rad/s motor: slower samples are left out (friction is undefined at rest)
     progress: bool = False
@@ -38,13 +38,33 @@ class DiagnosisResult:
         return self.search.accepted_
 
     def findings(self) -> list[dict]:
-        out = []
+        """Accepted terms as findings, in the order found. A joint_elasticity and a backlash accepted on the same
+        joint are one finding: backlash (the play, with its contact stiffness) — the elastic term accepted first
+        is the compliance part of it (nested models: the play was accepted only because it still improved the
+        held-out fit on top of the spring)."""
+        rows = []
         for s in self.accepted:
             row = s.row(self.rd.joints)
             row["holdout_rms_before"] = s.rms_before.tolist()
             row["holdout_rms_after"] = s.rms_after.tolist()
-            out.append(row)
-        return out
+            rows.append(row)
+        merged = []
+        for row in rows:
+            twin = next((m for m in merged if m["joint_index"] == row["joint_index"]
+                         and {m["kind"], row["kind"]} == {"joint_elasticity", "backlash"}), None)
+            if twin is None:
+                merged.append(row)
+                continue
+            el, bl = (twin, row) if twin["kind"] == "joint_elasticity" else (row, twin)
+            combined = dict(bl)
+            combined["summary"] = (f"{bl['summary']}; with the transmission compliance of the elastic term "
+                                   f"(about {el['effect']['stiffness']:.3g} N*m/rad)")
+            combined["holdout_rms_before"] = twin["holdout_rms_before"]
+            combined["holdout_rms_after"] = row["holdout_rms_after"]
+            combined["holdout_gain"] = 1 - (1 - el["holdout_gain"]) * (1 - bl["holdout_gain"])
+            combined["merged"] = ["joint_elasticity", "backlash"]
+            merged[merged.index(twin)] = combined
+        return merged
 
     def to_dict(self) -> dict:
         base = self.search.baseline_

@@ -8,7 +8,7 @@ Per candidate (term, joint):
    scaled by its baseline RMS, so small wrist motors count as much as the shoulder);
 3. score = held-out gain: 1 - SSE_with_term / SSE_without over every motor's held-out rows (same weights).
 The best plausible candidate (ranked by held-out gain over all motors) is accepted if its held-out and its fit gain
-on its own motors reach ``min_gain`` (default 15 %) and its gain over all motors ``min_gain_all``; its fitted torque
+on its own motors reach ``min_gain`` (default 12 %) and its gain over all motors ``min_gain_all``; its fitted torque
 is then part of the model and the search repeats (at most ``max_terms`` terms).
 """
 from __future__ import annotations
@@ -53,7 +53,7 @@ class MismatchSearch:
     """Estimator over a :class:`ResidualData`: ``fit`` runs the ladder, ``predict`` gives the accepted terms' torque,
     ``score`` the held-out gain of the accepted terms together."""
 
-    def __init__(self, library: tuple[Term, ...] = LIBRARY, kinds=None, min_gain: float = 0.15, min_gain_all: float = 0.01, max_terms: int = 3,
+    def __init__(self, library: tuple[Term, ...] = LIBRARY, kinds=None, min_gain: float = 0.12, min_gain_all: float = 0.01, max_terms: int = 3,
                  progress=None):
         unknown = set(kinds or ()) - set(KINDS)
         if unknown:
@@ -143,6 +143,7 @@ class MismatchSearch:
                 s = self._evaluate(rd, term, j, res, weights)
                 if s is not None:
                     scored.append(s)
+            self._nested_check(scored)
             scored.sort(key=lambda s: (s.fitted.plausible, s.holdout_gain_all), reverse=True)
             self.rankings_.append(scored)
             best = next((s for s in scored if s.fitted.plausible), None)
@@ -164,6 +165,18 @@ class MismatchSearch:
         self.final_ = {band: {"fit": _rms(r, m_fit), "holdout": _rms(r, rd.mask & rd.holdout_rows[:, None])}
                        for band, r in res.items()}
         return self
+
+    def _nested_check(self, scored: list[Scored], margin: float = 0.02) -> None:
+        """A term that contains a simpler one (``Term.extends``) must beat it on held-out data by ``margin`` on the
+        same joint, or it is not plausible (the simpler physics explains the data as well)."""
+        by_key = {(s.fitted.kind, s.fitted.joint): s for s in scored}
+        for s in scored:
+            term = next(t for t in self.library if t.kind == s.fitted.kind)
+            simpler = by_key.get((term.extends, s.fitted.joint)) if term.extends else None
+            if simpler is not None and s.holdout_gain < simpler.holdout_gain + margin and s.fitted.plausible:
+                s.fitted.plausible = False
+                s.fitted.why_not = (f"no better than {term.extends} on held-out data ({s.holdout_gain:.1%} vs "
+                                    f"{simpler.holdout_gain:.1%}): the simpler physics explains it")
 
     def predict(self, rd: ResidualData, band: str = "low") -> np.ndarray:
         """Torque (N, n) the accepted terms add to the model's prediction, in ``band`` ('low' or 'wide')."""

@@ -77,18 +77,18 @@ def main(argv=None) -> int:
         t1 = time.time()
         res = diagnose(model, rec)
         write_outputs(res, out / f"diagnosis_{kind}")
-        found = res.accepted[0] if res.accepted else None
-        motor = None
-        if found is not None:
-            motor = found.fitted.effect["joints"][0]
+        found = res.findings()[0] if res.findings() else None
+        motor = None if found is None else found["effect"]["joints"][0]
+        if found is not None and found["kind"] == "payload_change":
+            motor = max(range(robot.drives.n),
+                        key=lambda i: found["holdout_rms_before"][i] - found["holdout_rms_after"][i])
         rows.append({
             "concealed": kind if joint is None else f"{kind} on {robot.drives.joints[joint]}",
             "truth": params,
-            "named": "nothing" if found is None else f"{found.fitted.kind} on {robot.drives.joints[motor]}",
-            "found": {} if found is None else {k: v for k, v in found.fitted.effect.items()
-                                               if k not in ("kind", "joints")},
-            "holdout_rms_before": None if found is None else float(found.rms_before[motor]),
-            "holdout_rms_after": None if found is None else float(found.rms_after[motor]),
+            "named": "nothing" if found is None else f"{found['kind']} on {found['joint']}",
+            "found": {} if found is None else {k: v for k, v in found["effect"].items() if k not in ("kind", "joints")},
+            "holdout_rms_before": None if found is None else float(found["holdout_rms_before"][motor]),
+            "holdout_rms_after": None if found is None else float(found["holdout_rms_after"][motor]),
             "seconds": round(time.time() - t1, 1),
         })
         r = rows[-1]

@@ -67,22 +67,25 @@ CASES = [
     ("load_dependent_friction", 1, {"coefficient": 0.15}, lambda e: abs(e["coefficient"] - 0.15) < 0.03),
     ("asymmetric_friction", 0, {"negative_scale": 1.5}, lambda e: abs(e["negative_scale"] - 1.5) < 0.1),
     ("joint_elasticity", 1, {"stiffness": 1500.0, "damping": 3.0}, lambda e: 500 < e["stiffness"] < 4000),
+    ("backlash", 0, {"width": 0.03, "stiffness": 3000.0, "damping": 3.0}, lambda e: 0.01 <= e["width"] <= 0.08),
 ]
 
 
 @pytest.mark.parametrize("kind, joint, params, check", CASES, ids=[c[0] for c in CASES])
 def test_concealed_effect_is_located_named_modelled_and_proven(kind, joint, params, check):
     res = _diagnose([{"kind": kind, "joints": [joint], **params}])
-    assert res.accepted, f"nothing found; best candidates: {[s.row(res.rd.joints)['kind'] for s in res.search.rankings_[0][:3]]}"
-    top = res.accepted[0].fitted
-    assert top.kind == kind, f"named {top.kind} on {top.joint}, concealed {kind} on {joint}"
-    assert joint in top.effect["joints"]
-    assert check(top.effect), f"parameters off: {top.effect} vs simulated {params}"
+    findings = res.findings()
+    assert findings, ("nothing found; best candidates: "
+                      f"{[s.row(res.rd.joints)['kind'] for s in res.search.rankings_[0][:3]]}")
+    top = findings[0]
+    assert top["kind"] == kind, f"named {top['kind']} on {top['joint']}, concealed {kind} on joint {joint}"
+    assert joint in top["effect"]["joints"]
+    assert check(top["effect"]), f"parameters off: {top['effect']} vs simulated {params}"
     # proven on data it did not fit: the validation trajectory's residual on that motor drops
-    motor = joint if kind != "payload_change" else int(np.argmax(res.accepted[0].rms_before))
-    sc = res.accepted[0]
-    assert sc.rms_after[motor] < 0.9 * sc.rms_before[motor]
-    assert res.search.score(res.rd, sc.band) > 0
+    before, after = np.asarray(top["holdout_rms_before"]), np.asarray(top["holdout_rms_after"])
+    motor = joint if kind != "payload_change" else int(np.argmax(before - after))
+    assert after[motor] < 0.9 * before[motor]
+    assert res.search.score(res.rd, top["band"]) > 0
     assert motor in res.location["flagged"]
 
 
