@@ -19,7 +19,7 @@ import can
 import canopen
 import numpy as np
 
-from hil_sim.drives_core import EMCY_NAMES, Fault, SimDriveSet
+from hil_sim.drives_core import Fault, SimDriveSet
 from js2spec.errors import ConfigError
 
 log = logging.getLogger(__name__)

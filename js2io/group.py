@@ -12,7 +12,7 @@ from __future__ import annotations
 import collections
 import threading
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -19,7 +19,7 @@ from js2spec.errors import Js2Error
 from js2spec.log import LogWriter
 
 from . import cia402
-from .group import Command, DriveEvent, DriveGroup, Feedback
+from .group import Command, DriveGroup, Feedback
 from .trials import Trial, TrialContext, load_trials_config, make_trials
 
 

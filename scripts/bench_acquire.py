@@ -78,7 +78,6 @@ def component_costs(robot, cycle_hz, n=3000) -> list[tuple[str, float]]:
     """Mean CPU time per cycle of each piece of the loop, measured in isolation (us)."""
     import can
     from hil_sim.drives_core import SimDriveSet
-    from js2io.group import Feedback
     from js2io.session import open_log
     from hil_sim.direct import DirectDriveGroup
 

@@ -2,7 +2,6 @@
 it from another process. Plus: the slcan (USB adapter) path through a pty, Ctrl-C/SIGTERM, and a killed writer."""
 from __future__ import annotations
 
-import os
 import re
 import signal
 import subprocess
