@@ -144,7 +144,10 @@ def _run(args) -> int:
         print(f"js2-acquire: {robot.name}, trials {', '.join(names)} -> {args.output} ({where}, "
               f"{cycle_hz:g} Hz, {'real time' if args.realtime else 'lock-step'}, {sched})", file=sys.stderr)
         group.open()
-        writer = open_log(args.output, robot, group, cfg)
+        try:
+            writer = open_log(args.output, robot, group, cfg)
+        except OSError as e:
+            raise Js2Error(f"cannot write the log {args.output}: {e.strerror or e}; choose another -o path") from None
         session = Session(group, writer, trials, progress=not args.no_progress, max_consecutive_lost=args.max_lost,
                           joint_state=args.joint_state)
 
