@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from identification.report import png_base64, pyplot
+from identification.report import html_table, png_base64, pyplot
 
 from .run import DiagnosisResult
 
@@ -90,12 +90,6 @@ def fig_finding(res: DiagnosisResult, k: int):
     return fig
 
 
-def _table(headers, rows) -> str:
-    h = "".join(f"<th>{html.escape(str(x))}</th>" for x in headers)
-    b = "".join("<tr>" + "".join(f"<td>{html.escape(str(x))}</td>" for x in r) + "</tr>" for r in rows)
-    return f"<table><tr>{h}</tr>{b}</table>"
-
-
 def _g(x, p=3):
     return "–" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{p}g}"
 
@@ -129,12 +123,12 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
             f"{html.escape(d['recording'])}<br><b>Split</b> {html.escape(d['split'])}</p>",
             f"<h2>Verdict</h2><p>{html.escape(d['verdict'])}</p>",
             f"<h2>Where</h2><p>{html.escape(d['location']['text'])}</p>",
-            _table(["motor", "joint", "held-out RMS before (N m)", "after", "drop", "largest in", "mismatch"],
+            html_table(["motor", "joint", "held-out RMS before (N m)", "after", "drop", "largest in", "mismatch"],
                    loc_rows),
-            "<h2>What was found</h2>" + (_table(["kind", "joint", "hyper-parameter", "held-out gain", "fit gain",
+            "<h2>What was found</h2>" + (html_table(["kind", "joint", "hyper-parameter", "held-out gain", "fit gain",
                                                  "what it means"], rows) if rows else "<p>nothing</p>"),
             "<h2>Candidates tried (first step, best first)</h2>",
-            _table(["kind", "joint", "hyper", "held-out gain (all motors)", "held-out gain (its motors)",
+            html_table(["kind", "joint", "hyper", "held-out gain (all motors)", "held-out gain (its motors)",
                     "fit gain", "plausible"], cand)]
     for title, png in figs:
         body.append(f"<h2>{html.escape(title)}</h2><img src='data:image/png;base64,{png}'>")

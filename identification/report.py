@@ -113,7 +113,8 @@ def fig_validation(ident):
     return fig
 
 
-def _table(headers, rows) -> str:
+def html_table(headers, rows) -> str:
+    """An HTML table, every cell escaped."""
     h = "".join(f"<th>{html.escape(str(x))}</th>" for x in headers)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
     return f"<table><tr>{h}</tr>{body}</table>"
@@ -174,21 +175,21 @@ def write_report(ident, outdir: Path, verdict: dict | None = None) -> Path:
     if verdict is not None:
         cls = "pass" if verdict["pass"] else "fail"
         parts.append(f"<p>Verdict: <b class='{cls}'>{'PASS' if verdict['pass'] else 'FAIL'}</b></p>")
-        parts.append(_table(["check", "value", "threshold", "pass"],
+        parts.append(html_table(["check", "value", "threshold", "pass"],
                             [[c["check"], _f(c["value"]) if not isinstance(c["value"], bool) else c["value"],
                               c["threshold"], c["pass"]] for c in verdict["checks"]]))
-    parts.append("<h2>Inputs</h2>" + _table(["log", "sha256", "source", "truncated", "trials"],
+    parts.append("<h2>Inputs</h2>" + html_table(["log", "sha256", "source", "truncated", "trials"],
                                             [[i["path"], i["sha256"][:16] + "…", i["source"], i["truncated"],
                                               ", ".join(i["trials"])] for i in ident.inputs]))
     if ident.notes:
         parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in ident.notes) + "</ul>")
-    parts.append("<h2>Drive parameters (motor side)</h2>" + _table(
+    parts.append("<h2>Drive parameters (motor side)</h2>" + html_table(
         ["axis", "f_s (N m) (per direction)", "std", "f_c (N m)", "std", "B (N m s/rad)", "std", "J_a (kg m²)", "J_a separately"],
         fr_rows))
-    parts.append("<h2>Validation</h2>" + _table(val_head, val_rows))
+    parts.append("<h2>Validation</h2>" + html_table(val_head, val_rows))
     for title, b64 in figs:
         parts.append(f"<h2>{html.escape(title)}</h2><img src='data:image/png;base64,{b64}'/>")
-    parts.append("<h2>Base parameters</h2>" + _table(bp_head, bp_rows))
+    parts.append("<h2>Base parameters</h2>" + html_table(bp_head, bp_rows))
     parts.append("</body></html>")
     p = outdir / "report.html"
     p.write_text("\n".join(parts))
