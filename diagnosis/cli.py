@@ -58,7 +58,7 @@ def main(argv=None) -> int:
     from .run import DiagnoseOptions, diagnose
 
     if not 0 < args.min_gain < 1:
-        print("js2-diagnose: --min-gain must lie between 0 and 1", file=sys.stderr)
+        print("js2-diagnose: error: --min-gain must lie between 0 and 1", file=sys.stderr)
         return 2
     opt = DiagnoseOptions(holdout_trial=args.holdout_trial, fit_trials=args.fit_trials, kinds=args.kinds,
                           min_gain=args.min_gain, max_terms=args.max_terms, min_speed=args.min_speed,
@@ -67,7 +67,7 @@ def main(argv=None) -> int:
         res = diagnose(args.model, args.recording, opt)
         paths = write_outputs(res, args.outdir)
     except Js2Error as exc:
-        print(f"js2-diagnose: {exc}", file=sys.stderr)
+        print(f"js2-diagnose: error: {exc}", file=sys.stderr)
         return 2
     d = res.to_dict()
     for n in d["notes"]:

@@ -5,54 +5,18 @@ excitation and a validation trajectory with ONE effect the model does not have. 
 terms on the excitation and must (1) name the concealed kind on the right joint, (2) recover its physical parameter,
 (3) cut the residual on the validation trajectory it never fitted. A clean recording must name nothing.
 """
-import functools
 import json
-import tempfile
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fixtures_id_sim import sim_session
-
-_TMP = Path(tempfile.mkdtemp(prefix="js2_diag_tests_"))
-
-
-@functools.lru_cache(maxsize=None)
-def clean_model() -> Path:
-    from identification.cli.identify import main as identify_main
-
-    out = _TMP / "model"
-    rc = identify_main([str(sim_session()), "-o", str(out), "--no-report", "-q"])
-    assert rc == 0 and (out / "model.yaml").is_file()
-    return out
-
-
-@functools.lru_cache(maxsize=None)
-def recording(effects_json: str) -> Path:
-    """excitation + validation trials on the simulator with the given (hidden) effects (a JSON list)."""
-    from hil_sim.direct import DirectDriveGroup
-    from hil_sim.plant import Plant
-    from js2io.session import run_trials
-    from js2spec.robot import load_robot
-
-    robot = load_robot("js2")
-    path = _TMP / f"rec_{abs(hash(effects_json))}.mcap"
-    plant = Plant(robot, seed=5, effects=json.loads(effects_json))
-    with DirectDriveGroup(robot, plant=plant, seed=5) as group:
-        res = run_trials(group, robot, ["excitation", "validation"], path)
-    assert not res.aborted, res.reason
-    return path
+from fixtures_diag import clean_model, recording
 
 
 def _diagnose(effects: list[dict]):
     from diagnosis.run import diagnose
 
     return diagnose(clean_model(), recording(json.dumps(effects)))
-
-
-
-
 
 
 CASES = [
