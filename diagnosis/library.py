@@ -314,7 +314,7 @@ class _Compliance(Term):
     per_joint, hyper_name = True, "grid index"
 
     def motors(self, rd, j):
-        return np.flatnonzero(np.abs(rd.K[j, :]) > 0)     # K^T e_j: the motors that carry joint j's torque
+        return np.arange(rd.n)   # the play acts through K^T e_j; its elastic column (Backlash) reaches every motor
 
     def columns(self, rd, j, h):
         resp, _ = _link_response(rd, j)
@@ -331,9 +331,7 @@ class JointElasticity(Term):
     kind, per_joint = "joint_elasticity", True
 
     def motors(self, rd, j):
-        # the lag of link j shows mostly on the motors that carry joint j (K^T e_j); fitting it there keeps it
-        # comparable with the other per-joint terms
-        return np.flatnonzero(np.abs(rd.K[j, :]) > 0)
+        return np.arange(rd.n)          # M(q) couples the joints: every motor may feel link j's lag
 
     def columns(self, rd, j, h):
         tau_j = np.nan_to_num(rd.tau_rigid_joint[:, j])

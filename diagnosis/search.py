@@ -49,6 +49,13 @@ def _rms(x: np.ndarray, m: np.ndarray) -> np.ndarray:
     return out
 
 
+def _on_motors(cols: np.ndarray, motors: np.ndarray) -> np.ndarray:
+    """A term acts only on the motors it was fitted on: zero its columns elsewhere."""
+    out = np.zeros_like(cols)
+    out[:, motors] = cols[:, motors]
+    return out
+
+
 class MismatchSearch:
     """Estimator over a :class:`ResidualData`: ``fit`` runs the ladder, ``predict`` gives the accepted terms' torque,
     ``score`` the held-out gain of the accepted terms together."""
@@ -79,7 +86,7 @@ class MismatchSearch:
         rw = r * w
         best = None
         for h in term.grid(rd, j):
-            cols = term.columns_low(rd, j, h) if band == "low" else term.columns(rd, j, h)
+            cols = _on_motors(term.columns_low(rd, j, h) if band == "low" else term.columns(rd, j, h), motors)
             A = cols[sel_fit] * np.broadcast_to(w, r.shape)[sel_fit][:, None]
             b = rw[sel_fit]
             if not np.any(A):
@@ -153,9 +160,7 @@ class MismatchSearch:
             self.accepted_.append(best)
             # the accepted term becomes part of the model, in both bands
             term = next(t for t in self.library if t.kind == best.fitted.kind)
-            cols = term.columns(rd, best.fitted.joint, best.fitted.hyper if best.fitted.hyper is not None else None)
-            if term.kind == "cogging" and best.fitted.hyper is not None:
-                cols = term.columns(rd, best.fitted.joint, int(best.fitted.hyper))
+            cols = _on_motors(term.columns(rd, best.fitted.joint, best.fitted.hyper), term.motors(rd, best.fitted.joint))
             raw = cols @ best.fitted.coef
             low = rd.lowpass(raw)
             res["low"] = res["low"] - low
