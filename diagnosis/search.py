@@ -13,7 +13,7 @@ is then part of the model and the search repeats (at most ``max_terms`` terms).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,7 +30,6 @@ class Scored:
     rms_before: np.ndarray       # (n,) held-out RMS per motor, in the term's band
     rms_after: np.ndarray
     band: str
-    contribution: np.ndarray = field(repr=False, default=None)   # (N, n) torque of the term in its band
 
     def row(self, joints) -> dict:
         f = self.fitted
@@ -123,8 +122,7 @@ class MismatchSearch:
         fitted = Fitted(kind=term.kind, joint=j, hyper=None if h is None else float(h), coef=coef, coef_std=std,
                         effect=eff, summary=summary, plausible=bool(ok), why_not=why)
         return Scored(fitted=fitted, fit_gain=fit_gain, holdout_gain=hold_gain, holdout_gain_all=hold_gain_all,
-                      rms_before=_rms(r, m_hold), rms_after=_rms(r - contrib, m_hold), band=band,
-                      contribution=contrib)
+                      rms_before=_rms(r, m_hold), rms_after=_rms(r - contrib, m_hold), band=band)
 
     # -- the ladder -------------------------------------------------------------------------------------------------
     def fit(self, rd: ResidualData) -> "MismatchSearch":
