@@ -73,6 +73,17 @@ def _vec(d: dict, key: str, n: int, source, *, required: bool, positive=False, d
                         per="drive")
 
 
+def _section(d: dict, name: str, known: tuple[str, ...], source) -> dict:
+    """An optional sub-mapping of sim_truth.yaml whose keys must all be known."""
+    sec = d.get(name) or {}
+    if not isinstance(sec, dict):
+        raise ConfigError(source, name, f"must be a mapping ({', '.join(known)})")
+    bad = sorted(set(sec) - set(known))
+    if bad:
+        raise ConfigError(source, f"{name}.{bad[0]}", f"unknown key (known: {', '.join(known)})")
+    return sec
+
+
 def parse_truth(d: Any, n: int, source: str | Path | None = None, joints: list[str] | None = None) -> SimTruth:
     """Validate a parsed sim_truth mapping for ``n`` drives; raise :class:`ConfigError` naming file and key."""
     if not isinstance(d, dict):
@@ -87,19 +98,9 @@ def parse_truth(d: Any, n: int, source: str | Path | None = None, joints: list[s
     if np.any(fs < fc):
         raise ConfigError(source, "static", f"breakaway friction must be >= coulomb on every drive, got static "
                                             f"{fs.tolist()} < coulomb {fc.tolist()}")
-    sensors = d.get("sensors") or {}
-    if not isinstance(sensors, dict):
-        raise ConfigError(source, "sensors", "must be a mapping (current_noise_std)")
-    bad = sorted(set(sensors) - {"current_noise_std"})
-    if bad:
-        raise ConfigError(source, f"sensors.{bad[0]}", "unknown key (known: current_noise_std)")
+    sensors = _section(d, "sensors", ("current_noise_std",), source)
     noise = _vec(sensors, "sensors.current_noise_std", n, source, required=False, default=0.0)
-    integ = d.get("integration") or {}
-    if not isinstance(integ, dict):
-        raise ConfigError(source, "integration", "must be a mapping (substeps)")
-    bad = sorted(set(integ) - {"substeps"})
-    if bad:
-        raise ConfigError(source, f"integration.{bad[0]}", "unknown key (known: substeps)")
+    integ = _section(d, "integration", ("substeps",), source)
     substeps = integ.get("substeps", 2)
     if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
         raise ConfigError(source, "integration.substeps", f"must be an integer >= 1, got {substeps!r}")
