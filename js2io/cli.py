@@ -19,7 +19,8 @@ def build_parser() -> argparse.ArgumentParser:
                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n", 2)[2])
     p.add_argument("--trial", default="all",
                    help="static, velocity, acceleration, excitation, validation, all, or a comma list (default all)")
-    p.add_argument("-o", "--output", help="the js2 log to write (.mcap)")
+    p.add_argument("-o", "--output", help="the js2 log to write (.mcap); its folder must exist")
+    p.add_argument("--force", action="store_true", help="overwrite an existing -o file")
     p.add_argument("--dry-run", action="store_true", help="check the configuration and print the trial plan; no bus")
     p.add_argument("--robot", default="js2", help="robot name under configs/ or a robot folder (default js2)")
     p.add_argument("--config", help="trials file (default: the robot's trials.yaml)")
@@ -70,6 +71,22 @@ def plan_text(robot, cfg, trials, cycle_hz) -> str:
     return "\n".join(lines)
 
 
+def check_output(path: str, force: bool) -> None:
+    """Refuse, before any bus traffic, an -o that would lose data or cannot be written."""
+    import os
+    from pathlib import Path
+    out = Path(path)
+    if out.is_dir():
+        raise Js2Error(f"-o {path}: is a folder; give a file name, e.g. {out / 'session.mcap'}")
+    if out.exists() and not force:
+        raise Js2Error(f"-o {path}: the file exists; pass --force to overwrite it or choose another name")
+    folder = out.parent
+    if not folder.is_dir():
+        raise Js2Error(f"-o {path}: the folder {folder} does not exist; create it (mkdir -p {folder}) or fix the path")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise Js2Error(f"-o {path}: the folder {folder} is not writable; choose another -o")
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from js2io.bus import console_logging
@@ -115,6 +132,7 @@ def _run(args) -> int:
         return 0
     if not args.output:
         raise Js2Error("-o/--output FILE.mcap is required (or --dry-run)")
+    check_output(args.output, args.force)
     try:
         if args.direct:
             from hil_sim.direct import DirectDriveGroup

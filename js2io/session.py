@@ -7,6 +7,12 @@ Safety: torque is clamped to the configured limit in the DriveGroup (the same li
 leaving the joint envelope -> quick stop; a drive fault / EMCY, a dead node (heartbeat), lost TPDOs beyond
 `max_consecutive_lost`, a bus error -> `fault` + `abort` events and a safe stop; Ctrl-C / SIGTERM -> torques ramp
 to zero, drives disabled. The log is closed in every case.
+
+The stop path depends on nothing that can fail: every log write goes through `GuardedLog` (a failing write - full
+disk, closed file, a bad value - is remembered, later writes are skipped, nothing is raised into the cycle loop),
+the stop runs in a `finally`, each of its phases (ramp / quick stop, disable) is tried on its own, and the summary
+reports a drive as disabled only when a fresh reading after the disable request says so. A failed log is reported
+after the drives are safe.
 """
 from __future__ import annotations
 
@@ -27,6 +33,60 @@ class SessionAbort(Exception):
     pass
 
 
+NOT_CONFIRMED = "NOT CONFIRMED DISABLED (no answer)"
+
+
+def one_line(e: BaseException) -> str:
+    """`Type: first line of the message`, at most 200 characters: what a summary, an event or metadata carries
+    (python-can puts whole tracebacks into some exception texts)."""
+    text = str(e).split("Traceback (most recent call last)")[0].strip().splitlines()
+    msg = " ".join(text[0].split()) if text else ""
+    out = f"{type(e).__name__}: {msg}" if msg else type(e).__name__
+    return out if len(out) <= 200 else out[:197] + "..."
+
+
+class GuardedLog:
+    """The session's only way to the log. A write that fails (OSError on a full disk, a closed writer, a value the
+    encoder refuses) is remembered in `error` and every later write is skipped: the cycle loop sees a flag, never an
+    exception, so neither the trial's abort nor the drives' stop can be skipped by the log."""
+
+    def __init__(self, writer: LogWriter):
+        self.writer = writer
+        self.error: str | None = None
+        self.path = writer.path
+
+    def __getattr__(self, name):
+        fn = getattr(self.writer, name)
+
+        def guarded(*a, **kw):
+            if self.error is not None:
+                return None
+            try:
+                return fn(*a, **kw)
+            except Exception as e:   # noqa: BLE001 - any failure of the log must not reach the stop path
+                self.error = f"log write failed ({name}): {one_line(e)}"
+                return None
+        return guarded
+
+    def close(self) -> None:
+        """Close the file even after a failed write (the mcap footer may then be missing: the reader recovers the
+        complete chunks, `js2-repair` rewrites it)."""
+        w = self.writer
+        if getattr(w, "closed", False):
+            return
+        try:
+            if self.error is None:
+                w.close()
+                return
+        except Exception as e:   # noqa: BLE001
+            self.error = f"log could not be closed: {one_line(e)}"
+        try:
+            w.closed = True
+            w._file.close()
+        except Exception:   # noqa: BLE001 - the file object itself is broken; nothing more to save
+            pass
+
+
 @dataclass
 class SessionResult:
     path: str
@@ -41,6 +101,9 @@ class SessionResult:
     events: int = 0
     max_abs_command: list = field(default_factory=list)
     final_states: list = field(default_factory=list)
+    stop_errors: list = field(default_factory=list)   # what failed while stopping (one line each)
+    log_error: str | None = None
+    debug_path: str | None = None          # full traceback of an unexpected error, if one was written
 
     def text(self) -> str:
         lines = [f"log: {self.path}",
@@ -53,6 +116,11 @@ class SessionResult:
         lines.append(f"drives at the end: {', '.join(self.final_states)}")
         if self.aborted:
             lines.append(f"ABORTED: {self.reason}")
+        if self.log_error:
+            lines.append(f"LOG INCOMPLETE: {self.log_error}; the drives were stopped regardless. Free space or choose "
+                         f"another -o; `js2-repair {self.path}` recovers what was written")
+        if self.debug_path:
+            lines.append(f"details for a bug report: {self.debug_path}")
         return "\n".join(lines)
 
 
@@ -61,7 +129,7 @@ class Session:
                  max_consecutive_lost: int = 10, stop_ramp_s: float = 0.3, enable_timeout_s: float = 1.0,
                  on_cycle=None, joint_state: bool = False):
         self.g = group
-        self.w = writer
+        self.w = writer if isinstance(writer, GuardedLog) else GuardedLog(writer)
         self.trials = trials
         self.progress = progress
         self.max_consecutive_lost = int(max_consecutive_lost)
@@ -81,6 +149,7 @@ class Session:
         self.qmin = np.asarray(d.position_min, dtype=float) if d.position_min is not None else None
         self.qmax = np.asarray(d.position_max, dtype=float) if d.position_max is not None else None
         self._bar = None
+        self.confirmed = np.zeros(self.n, dtype=bool)      # drive answered with a disabled state after that
 
     # ------------------------------------------------------------------ logging helpers
     def _event(self, kind: str, **fields) -> None:
@@ -143,6 +212,8 @@ class Session:
                     break
         if fatal is not None:
             raise SessionAbort(fatal)
+        if self.w.error is not None:
+            raise SessionAbort(self.w.error)
         if self.qmin is not None:
             qj = self.g.drives.joint_from_motor(fb.motor_position)
             out = np.flatnonzero((qj < self.qmin) | (qj > self.qmax))
@@ -180,40 +251,63 @@ class Session:
             self._event("fault", joint=ev.joint, detail=ev.detail, value=ev.code)
 
     def _stop(self, how: str) -> None:
-        """how: 'ramp' (torques ramp to zero, then disable) or 'quick_stop' (drives brake, then disable)."""
-        orig_sync = self._sync
+        """how: 'ramp' (torques ramp to zero, then disable) or 'quick_stop' (drives brake, then disable).
 
-        def _sync_logging():
-            fb = orig_sync()
+        Never raises. Each phase is tried on its own: a bus that fails during the ramp still gets the disable
+        request; log writes cannot fail here (GuardedLog). `self.confirmed[i]` is set only by a fresh (valid)
+        reading of drive i, after the disable request, that shows it no longer enabled."""
+        def step(command):
+            self._send(command)
+            fb = self._sync()
             self._log_late_events()
             return fb
-        self._sync = _sync_logging
+
         try:
             if how == "ramp" and self.g.sent is not None:
                 tau0 = self.g.sent.target_torque.copy()
                 N = max(1, int(self.stop_ramp_s * self.g.cycle_hz))
                 for k in range(1, N + 1):
-                    self._send(Command(tau0 * (1.0 - k / N), mode=self.g.modes))
-                    self._sync()
+                    step(Command(tau0 * (1.0 - k / N), mode=self.g.modes))
             elif how == "quick_stop":
                 self.g.request("quick_stop")
                 for _ in range(max(1, int(0.2 * self.g.cycle_hz))):
-                    self._send(None)
-                    self._sync()
+                    step(None)
+        except Exception as e:   # noqa: BLE001 - the bus may be gone; still ask for the disable below
+            self._stop_error(f"while ramping down ({how}): {one_line(e)}")
+        try:
             self.g.request("disabled")
-            for _ in range(max(3, int(0.1 * self.g.cycle_hz))):
-                self._send(None)
-                fb = self._sync()
-                if all(s in (cia402.SWITCH_ON_DISABLED, cia402.FAULT) for s, v in zip(fb.states(), fb.valid) if v):
+            off = (cia402.SWITCH_ON_DISABLED, cia402.FAULT, cia402.READY, cia402.SWITCHED_ON, cia402.NOT_READY)
+            for _ in range(max(5, int(0.1 * self.g.cycle_hz))):
+                fb = step(None)    # valid = this cycle's TPDO arrived: a stale copy never confirms anything
+                self.confirmed |= np.asarray(fb.valid, dtype=bool) & np.array([s in off for s in fb.states()])
+                if self.confirmed.all():
                     break
-        except Exception as e:  # the bus may be gone: nothing more we can command
-            self._event("fault", detail=f"while stopping: {type(e).__name__}: {e}")
-        finally:
-            self._sync = orig_sync
-            try:
-                self._log_late_events()
-            except Exception:
-                pass
+        except Exception as e:   # noqa: BLE001
+            self._stop_error(f"while disabling the drives: {one_line(e)}")
+
+    def _stop_error(self, detail: str) -> None:
+        self.result.stop_errors.append(detail)
+        try:
+            self._event("fault", detail=detail)
+        except Exception:   # noqa: BLE001 - self.fb may be missing; the detail is in the result already
+            pass
+
+    def _final_states(self) -> list[str]:
+        """What the summary may claim: the state a drive confirmed after the disable request, or that it did not."""
+        if self.fb is None:
+            return [NOT_CONFIRMED] * self.n
+        return [s if ok else NOT_CONFIRMED for s, ok in zip(self.fb.states(), self.confirmed)]
+
+    def _write_debug(self, exc: BaseException) -> str | None:
+        """The full traceback of an unexpected error, beside the log (best effort: the disk may be full)."""
+        import traceback
+        path = f"{self.result.path}.error.txt"
+        try:
+            with open(path, "w") as f:
+                f.write("".join(traceback.format_exception(type(exc), exc, exc.__traceback__)))
+            return path
+        except OSError:
+            return None
 
     # ------------------------------------------------------------------ main
     def run(self) -> SessionResult:
@@ -222,75 +316,83 @@ class Session:
         gc.freeze()    # set-up objects out of the collector's way: fewer long gen-2 pauses in the cycle loop
         t_wall = time.perf_counter()
         res = self.result
-        if self.progress:
-            from tqdm import tqdm
-            total = int(sum(t.estimate_s() for t in self.trials) * self.g.cycle_hz)
-            self._bar = tqdm(total=total, unit="cyc", desc="js2-acquire", smoothing=0.05)
-        stop_how = "ramp"
+        stop_how = "quick_stop"      # anything that escapes below (even BaseException) ends in a quick stop
         try:
-            try:
-                self._enable()
-                for k_trial, trial in enumerate(self.trials):
-                    self.current_trial = trial.name
-                    if self._bar is not None:   # re-estimate what is left, so the bar never overflows
-                        left = sum(t.estimate_s() for t in self.trials[k_trial:]) * 1.03 * self.g.cycle_hz
-                        self._bar.total = int(self._bar.n + left)
-                        self._bar.set_description(trial.name)
-                    self._event("trial_start", detail=type(trial).__doc__.strip().splitlines()[0])
-                    status = "aborted"
-                    try:
-                        while True:
-                            fb = self.fb
-                            self._check(fb)
-                            step = trial.step(fb)
-                            for ev in step.events:
-                                ev = dict(ev)
-                                self._event(ev.pop("kind"), **ev)
-                            if step.done:
-                                status = "done"
-                                break
-                            self._send(step.command)
-                            self._sync()
-                    finally:
-                        res.trials.append((trial.name, status, trial.summary))
-                        if status == "done":
-                            self._event("trial_end")
-            except SessionAbort as e:
-                res.aborted, res.reason = True, str(e)
-                stop_how = "ramp" if self.stop_request else "quick_stop"
-                self._event("abort", detail=str(e))
-            except Js2Error:
-                raise
-            except Exception as e:   # bus errors from python-can / canopen, and anything unexpected
-                import can
-                what = "bus error" if isinstance(e, (can.CanError, OSError)) else "internal error"
-                res.aborted, res.reason = True, f"{what}: {type(e).__name__}: {e}"
-                stop_how = "quick_stop"
-                if self.fb is not None:
-                    self._event("fault", detail=res.reason)
-                    self._event("abort", detail=res.reason)
-            self._stop(stop_how)
+            if self.progress:
+                from tqdm import tqdm
+                total = int(sum(t.estimate_s() for t in self.trials) * self.g.cycle_hz)
+                self._bar = tqdm(total=total, unit="cyc", desc="js2-acquire", smoothing=0.05)
+            self._enable()
+            for k_trial, trial in enumerate(self.trials):
+                self.current_trial = trial.name
+                if self._bar is not None:   # re-estimate what is left, so the bar never overflows
+                    left = sum(t.estimate_s() for t in self.trials[k_trial:]) * 1.03 * self.g.cycle_hz
+                    self._bar.total = int(self._bar.n + left)
+                    self._bar.set_description(trial.name)
+                self._event("trial_start", detail=type(trial).__doc__.strip().splitlines()[0])
+                status = "aborted"
+                try:
+                    while True:
+                        fb = self.fb
+                        self._check(fb)
+                        step = trial.step(fb)
+                        for ev in step.events:
+                            ev = dict(ev)
+                            self._event(ev.pop("kind"), **ev)
+                        if step.done:
+                            status = "done"
+                            break
+                        self._send(step.command)
+                        self._sync()
+                finally:
+                    res.trials.append((trial.name, status, trial.summary))
+                    if status == "done":
+                        self._event("trial_end")
+            stop_how = "ramp"
+        except SessionAbort as e:
+            res.aborted, res.reason = True, str(e)
+            stop_how = "ramp" if self.stop_request else "quick_stop"
+        except Js2Error as e:         # a configuration problem met mid-session: stop first, then report it (exit 2)
+            res.aborted, res.reason = True, str(e)
+            raise
+        except Exception as e:   # noqa: BLE001 - bus errors from python-can / canopen, and anything unexpected
+            import can
+            what = "bus error" if isinstance(e, (can.CanError, OSError)) else "internal error"
+            res.aborted, res.reason = True, f"{what}: {one_line(e)}"
+            res.debug_path = self._write_debug(e)
+        except BaseException as e:    # KeyboardInterrupt without a handler, SystemExit: stop, then let it go on
+            res.aborted, res.reason = True, f"interrupted: {one_line(e)}"
+            raise
         finally:
+            if res.aborted:
+                self._event("abort", detail=res.reason)     # GuardedLog: cannot raise
+            self._stop(stop_how)                              # never raises; nothing above can skip it
+            self._finish(t_wall)
+        return res
+
+    def _finish(self, t_wall: float) -> None:
+        """Summary and log close, after the drives are safe. Never raises."""
+        res = self.result
+        try:
             if self._bar is not None:
                 if not res.aborted:
                     self._bar.total = self._bar.n
                 self._bar.close()
-            res.cycles = (self.fb.cycle + 1) if self.fb is not None else 0
-            res.sim_time_s = self.fb.t if self.fb is not None else 0.0
-            res.lost = self.g.lost.tolist()
-            res.max_abs_command = [round(float(x), 5) for x in self.max_cmd]
-            res.final_states = ([s if v else f"NO ANSWER (last seen {s})" for s, v in zip(self.fb.states(), self.fb.valid)]
-                                if self.fb is not None else [])
-            res.wall_time_s = time.perf_counter() - t_wall
-            try:
-                self.w.metadata("js2_acquire_summary", {
-                    "cycles": res.cycles, "lost_tpdo_per_drive": res.lost, "invalid_cycles": res.invalid_cycles,
-                    "aborted": res.aborted, "reason": res.reason or "",
-                    "trials": ",".join(f"{n}:{s}" for n, s, _ in res.trials)})
-            except Exception:
-                pass
-            self.w.close()
-        return res
+        except Exception:   # noqa: BLE001 - a broken terminal must not hide the summary
+            pass
+        res.cycles = (self.fb.cycle + 1) if self.fb is not None else 0
+        res.sim_time_s = self.fb.t if self.fb is not None else 0.0
+        res.lost = self.g.lost.tolist()
+        res.max_abs_command = [round(float(x), 5) for x in self.max_cmd]
+        res.final_states = self._final_states()
+        res.wall_time_s = time.perf_counter() - t_wall
+        self.w.metadata("js2_acquire_summary", {
+            "cycles": res.cycles, "lost_tpdo_per_drive": res.lost, "invalid_cycles": res.invalid_cycles,
+            "aborted": res.aborted, "reason": res.reason or "",
+            "drives_disabled_confirmed": ",".join(str(bool(c)).lower() for c in self.confirmed),
+            "trials": ",".join(f"{n}:{s}" for n, s, _ in res.trials)})
+        self.w.close()
+        res.log_error = self.w.error
 
 
 def open_log(path, robot, group: DriveGroup, trials_cfg: dict | None = None, extra: dict | None = None) -> LogWriter:

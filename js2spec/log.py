@@ -94,14 +94,16 @@ class LogWriter:
     def __init__(self, path: str | Path, *, robot: str, cycle_hz: float, source: str, urdf_text: str,
                  drives_yaml: str, chunk_size: int = 64 * 1024, flush_every_s: float = 0.5,
                  start_ns: int | None = None, extra_metadata: dict[str, str] | None = None,
-                 compression: str = "zstd"):
+                 compression: str = "zstd", opener=open):
+        """`opener(path, mode)` opens the file (default: the builtin `open`); tests pass one that runs out of
+        space to prove the session's stop path does not depend on the log."""
         from mcap.writer import CompressionType, Writer
 
         self.path = Path(path)
         self.drives = parse_drives_yaml(drives_yaml, f"{self.path}:drives.yaml")
         self.n = self.drives.n
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "wb")
+        self._file = opener(self.path, "wb")
         comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[compression]
         self._w = Writer(self._file, chunk_size=chunk_size, compression=comp)
         self._w.start(profile="", library="js2 log writer v1")

@@ -8,7 +8,7 @@ bash scripts/install.sh
 out=${1:-runs/quickstart}
 mkdir -p "$out"
 echo "[js2] 1/2 acquisition: js2-acquire --trial all -o $out/session.mcap"
-.venv/bin/js2-acquire --trial all -o "$out/session.mcap"
+.venv/bin/js2-acquire --trial all -o "$out/session.mcap" --force
 echo "[js2] 2/2 identification: js2-identify $out/session.mcap -o $out/model"
 .venv/bin/js2-identify "$out/session.mcap" -o "$out/model"
 echo "[js2] done: open $out/model/report.html"

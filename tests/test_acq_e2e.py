@@ -216,3 +216,8 @@ def test_simulator_process_killed_mid_trial(tmp_path):
     assert "abort" in kinds and "fault" in kinds
     why = " ".join(e.get("detail", "") for e in log.events if e["kind"] in ("fault", "abort"))
     assert any(w in why for w in ("bus error", "heartbeat lost", "TPDOs lost")), why
+    # the summary claims nothing it could not confirm, and every reason is one line
+    end = so.split("drives at the end:")[1].splitlines()[0]
+    assert "OPERATION ENABLED" not in end and "NOT CONFIRMED DISABLED (no answer)" in end, so
+    assert all("\n" not in e.get("detail", "") for e in log.events)
+    assert "Traceback" not in so

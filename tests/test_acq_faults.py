@@ -165,3 +165,53 @@ def test_direct_group_faults_match(tmp_path, cfg):
     assert res.aborted and "EMCY node 2" in res.reason
     _assert_disabled(g.sim)
     _check_log(path, detail_has="0x2310")
+
+
+class FullDisk:
+    """A real file that runs out of space after `limit` bytes, as a small tmpfs does (OSError ENOSPC)."""
+
+    def __init__(self, f, limit):
+        self.f, self.limit, self.written = f, limit, 0
+
+    def write(self, b):
+        import errno
+        if self.written + len(b) > self.limit:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        self.written += len(b)
+        return self.f.write(b)
+
+    def __getattr__(self, name):
+        return getattr(self.f, name)
+
+
+def test_full_disk_mid_trial_still_stops_and_disables(tmp_path, cfg):
+    """The log's disk fills up mid-trial: the session aborts, ramps/quick-stops and disables every drive (asked of
+    the simulated drives), then reports the log failure in one line; the part written before is readable."""
+    from js2io.session import Session
+    from js2io.trials import TrialContext, make_trials
+    from js2spec.log import LogWriter
+    path = tmp_path / "full.mcap"
+    with InProcessCanopen(ROBOT) as rig:
+        ctx = TrialContext(ROBOT.drives, 1 / 500, cfg)
+        rig.group.open()
+        w = LogWriter(path, robot=ROBOT.name, cycle_hz=500, source="test", urdf_text=ROBOT.urdf_text,
+                 drives_yaml=ROBOT.drives.to_yaml(), opener=lambda p, m: FullDisk(open(p, m), 120_000))
+        res = Session(rig.group, w, make_trials(["excitation"], ctx)).run()
+        states = [c.state for c in rig.sim.set.cores]
+        sim_set = rig.sim.set
+    assert res.aborted and res.reason.startswith("log write failed"), res.text()
+    assert "No space left on device" in res.reason and "\n" not in res.reason
+    _assert_disabled(sim_set)
+    assert res.final_states == [cia402.SWITCH_ON_DISABLED] * 6, res.final_states
+    assert "LOG INCOMPLETE" in res.text()
+    assert max(res.max_abs_command[i] - ROBOT.drives.torque_limit[i] for i in range(6)) <= 1e-9
+    log = read_log(path)          # what reached the disk before it filled: readable, flagged as recovered
+    assert len(log.feedback.t) > 50
+
+
+def test_bus_gone_summary_does_not_claim_disabled(tmp_path, cfg):
+    """After a bus-off no drive can answer the stop: the summary says so instead of repeating the last state."""
+    res, path, sim_set, _ = _run_can(tmp_path, cfg, ["bus_error@300"])
+    assert res.aborted and "\n" not in res.reason
+    assert res.final_states == ["NOT CONFIRMED DISABLED (no answer)"] * 6, res.final_states
+    assert "OPERATION ENABLED" not in res.text().split("drives at the end:")[1]

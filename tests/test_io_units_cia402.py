@@ -168,3 +168,24 @@ def test_trials_config_refuses_unknown_keys_and_bad_poses(tmp_path):
     ctx = TrialContext(ROBOT.drives, 0.002, load_trials_config(p))
     with pytest.raises(ConfigError, match=r"static.poses\[0\].*outside the joint envelope"):
         make_trials(["static"], ctx)
+
+
+def test_cli_output_checked_before_the_bus(tmp_path, capsys):
+    """-o that would lose data or cannot be written: one line, exit 2, nothing sent, nothing overwritten."""
+    from js2io.cli import main
+    old = tmp_path / "old.mcap"
+    old.write_bytes(b"precious")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    cases = [(old, "the file exists; pass --force"), (tmp_path, "is a folder"),
+             (tmp_path / "no" / "such" / "x.mcap", "does not exist; create it")]
+    import os
+    if os.geteuid() != 0:        # root writes anywhere: the permission case only means something for users
+        cases.append((ro / "x.mcap", "is not writable"))
+    for path, what in cases:
+        assert main(["--trial", "static", "-o", str(path), "--no-progress"]) == 2, path
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and what in err and "Traceback" not in err, err
+    assert old.read_bytes() == b"precious"
+    assert not (tmp_path / "no").exists()
