@@ -21,6 +21,7 @@ import numpy as np
 
 from .drives import DrivesConfig, parse_drives_yaml
 from .errors import ConfigError, LogError
+from .mcap_scan import McapScan
 
 FORMAT = "js2-log"
 VERSION = "1"
@@ -263,7 +264,8 @@ class Js2Log:
     events: list[dict] = field(default_factory=list)
     attachments: dict[str, bytes] = field(default_factory=dict)
     truncated: bool = False
-    recovered_note: str = ""
+    damage: list = field(default_factory=list)       # mcap_scan.Damage: corrupt regions skipped, a cut-off tail
+    recovered_note: str = ""      # one sentence when the file was damaged or repaired; '' for an intact log
     warnings: list[str] = field(default_factory=list)
     sha256: str = ""
 
@@ -332,27 +334,14 @@ def file_sha256(path: str | Path) -> str:
     return h.hexdigest()
 
 
-def _iter_records(path: Path):
-    """Yield (kind, record) from the file, streaming; returns (truncated, reason) via StopIteration value."""
-    from mcap.records import Attachment, Channel, Message, Metadata, Schema
-    from mcap.stream_reader import StreamReader
-
-    with open(path, "rb") as f:
-        reader = StreamReader(f, skip_magic=False, emit_chunks=False, validate_crcs=True)
-        try:
-            for rec in reader.records:
-                if isinstance(rec, (Message, Channel, Schema, Metadata, Attachment)):
-                    yield rec
-        except Exception as exc:  # noqa: BLE001 - any decode failure at the tail means truncation
-            return True, f"{type(exc).__name__}: {exc}"
-    return False, ""
-
-
 def read_log(path: str | Path) -> Js2Log:
-    """Read a js2 log v1 into arrays. Truncated files are read up to the last complete chunk (``truncated``)."""
+    """Read a js2 log v1 into arrays. Damaged files are read around the damage (``damage``, ``recovered_note``):
+    a truncated tail up to the last complete chunk, a corrupt chunk mid-file skipped (`js2spec.mcap_scan`)."""
     from mcap.records import Attachment, Channel, Message, Metadata
 
     path = Path(path)
+    if path.is_dir():
+        raise LogError(path, "is a folder, not a log file; give the .mcap file inside it")
     if not path.is_file():
         raise LogError(path, "file not found")
     with open(path, "rb") as f:
@@ -364,14 +353,9 @@ def read_log(path: str | Path) -> Js2Log:
     attachments: dict[str, bytes] = {}
     channels: dict[int, str] = {}
     msgs: dict[str, list] = {TOPIC_FEEDBACK: [], TOPIC_COMMAND: [], TOPIC_EVENT: []}
-    gen = _iter_records(path)
-    truncated, reason = False, ""
-    while True:
-        try:
-            rec = next(gen)
-        except StopIteration as stop:
-            truncated, reason = stop.value if stop.value else (False, "")
-            break
+    repair: dict[str, str] | None = None
+    scan = McapScan(path)
+    for rec in scan.records():
         if isinstance(rec, Message):
             topic = channels.get(rec.channel_id)
             if topic in msgs:
@@ -381,11 +365,14 @@ def read_log(path: str | Path) -> Js2Log:
         elif isinstance(rec, Metadata):
             if rec.name == "js2":
                 meta = dict(rec.metadata)
+            elif rec.name == "js2_repair":
+                repair = dict(rec.metadata)
         elif isinstance(rec, Attachment):
             attachments[rec.name] = bytes(rec.data)
 
     if meta is None:
-        raise LogError(path, "no 'js2' metadata record: not a js2 log (or truncated before its header)")
+        damaged = f" (the file is damaged: {scan.note()})" if scan.damage else ""
+        raise LogError(path, f"no 'js2' metadata record: not a js2 log (or truncated before its header){damaged}")
     if meta.get("format") != FORMAT:
         raise LogError(path, f"metadata format is {meta.get('format')!r}, expected {FORMAT!r}")
     if meta.get("version") != VERSION:
@@ -422,14 +409,19 @@ def read_log(path: str | Path) -> Js2Log:
             raise LogError(path, f"an {TOPIC_EVENT} message lacks t/kind/trial: {e}")
         events.append(e)
     events.sort(key=lambda e: e["t"])
+    truncated = scan.truncated
     note = ""
-    if truncated:
-        note = (f"log is truncated ({reason}); recovered {len(feedback)} feedback cycles "
-                f"({feedback.t[-1] if len(feedback) else 0:.3f} s) and {len(events)} events up to the last complete "
-                f"chunk")
+    if scan.damage or truncated:
+        where = ("up to the last complete chunk" if not any(d.kind == "corrupt" for d in scan.damage)
+                 else "around the damage")
+        note = (f"log was recovered ({scan.note()}); read {len(feedback)} feedback cycles "
+                f"({feedback.t[-1] if len(feedback) else 0:.3f} s) and {len(events)} events {where}; "
+                f"`js2-repair {path}` rewrites it as a complete MCAP")
+    elif repair is not None:
+        note = f"log was repaired by js2-repair from {repair.get('source', '?')}: {repair.get('damage', '')}"
     return Js2Log(path=path, meta=meta, urdf_text=attachments["robot.urdf"].decode(), drives_yaml=drives_yaml,
                   drives=drives, feedback=feedback, command_raw=msgs[TOPIC_COMMAND], events=events, attachments=attachments,
-                  truncated=truncated, recovered_note=note, warnings=warnings, sha256=file_sha256(path))
+                  truncated=truncated, damage=list(scan.damage), recovered_note=note, warnings=warnings, sha256=file_sha256(path))
 
 
 def _decode_all(path: Path, raws: list[bytes], topic: str) -> list[dict]:

@@ -64,6 +64,90 @@ def test_truncated_log_is_recovered_and_says_so(tmp_path, robot):
     np.testing.assert_array_equal(log.feedback.motor_position, pos[:n])
 
 
+def _chunk_offsets(path):
+    """Byte offsets of the file's chunks, from its own chunk index (mcap's seeking reader)."""
+    from mcap.reader import make_reader
+    with open(path, "rb") as f:
+        return sorted(ci.chunk_start_offset for ci in make_reader(f).get_summary().chunk_indexes)
+
+
+def test_corrupt_chunk_mid_file_is_skipped_and_named(tmp_path, robot):
+    """64 zero bytes inside a chunk at a third of the file: that chunk is skipped, everything after it is read,
+    and the reader says where and how much was lost (not 'truncated')."""
+    path = tmp_path / "a.mcap"
+    pos = _write(path, robot, n_cycles=6000)
+    data = bytearray(path.read_bytes())
+    offs = _chunk_offsets(path)
+    bad = next(o for o in offs if o > len(data) // 3)
+    data[bad + 40:bad + 104] = bytes(64)
+    hurt = tmp_path / "hurt.mcap"
+    hurt.write_bytes(bytes(data))
+    log = read_log(hurt)
+    assert not log.truncated and len(log.damage) == 1 and log.damage[0].kind == "corrupt"
+    assert f"corrupt bytes {bad}.." in log.recovered_note and "s of messages lost" in log.recovered_note
+    n = len(log.feedback)
+    lost = 6000 - n
+    assert 0 < lost < 6000 * 0.05, lost          # one small chunk, not two thirds of the file
+    idx = np.flatnonzero(np.diff(log.feedback.cycle) > 1)
+    assert len(idx) == 1                          # one hole, where the chunk was
+    keep = np.r_[np.arange(idx[0] + 1), np.arange(idx[0] + 1 + lost, 6000)]
+    np.testing.assert_array_equal(log.feedback.motor_position, pos[keep])
+    assert log.events[-1]["kind"] == "trial_end"  # the events written after the damage are there
+
+
+def test_garbage_after_damage_never_becomes_data(tmp_path, robot):
+    """Random bytes over the whole second half: what is read is exactly a prefix of what was written."""
+    path = tmp_path / "a.mcap"
+    pos = _write(path, robot, n_cycles=4000)
+    data = bytearray(path.read_bytes())
+    rng = np.random.default_rng(3)
+    half = len(data) // 2
+    data[half:] = rng.integers(0, 256, len(data) - half, dtype=np.uint8).tobytes()
+    hurt = tmp_path / "garbage.mcap"
+    hurt.write_bytes(bytes(data))
+    log = read_log(hurt)
+    n = len(log.feedback)
+    assert 0 < n < 4000 and log.recovered_note
+    np.testing.assert_array_equal(log.feedback.motor_position, pos[:n])
+
+
+def test_js2_repair_makes_a_killed_log_complete(tmp_path, robot, capsys):
+    """A log cut off as by kill -9 (no footer): mcap's own reader yields nothing from it; after js2-repair it
+    yields every message that was recoverable, and read_log says the log was repaired."""
+    from mcap.reader import make_reader
+
+    from js2spec.repair import main as repair_main
+    path = tmp_path / "a.mcap"
+    pos = _write(path, robot, n_cycles=6000)
+    data = path.read_bytes()
+    cut = tmp_path / "killed.mcap"
+    cut.write_bytes(data[: int(len(data) * 0.6)])
+    n_before = len(read_log(cut).feedback)
+    assert repair_main([str(cut)]) == 0
+    out = tmp_path / "killed.repaired.mcap"
+    assert "truncated" in capsys.readouterr().out
+    with open(out, "rb") as f:
+        r = make_reader(f)
+        n_fb = sum(1 for _, ch, _ in r.iter_messages(topics=["/js2/feedback"]))
+        assert r.get_summary() is not None
+    assert n_fb == n_before
+    log = read_log(out)
+    assert not log.truncated and "repaired by js2-repair" in log.recovered_note
+    np.testing.assert_array_equal(log.feedback.motor_position, pos[:n_before])
+    assert log.attachments.keys() >= {"robot.urdf", "drives.yaml"}
+    # refusals: one line, exit 2
+    for argv, what in (([str(cut)], "exists; pass --force"), ([str(tmp_path)], "is a folder"),
+                       ([str(tmp_path / "none.mcap")], "file not found"), ([str(cut), "-o", str(cut)], "itself")):
+        assert repair_main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and what in err, err
+
+
+def test_a_folder_given_as_log_is_named_a_folder(tmp_path):
+    with pytest.raises(LogError, match="is a folder"):
+        read_log(tmp_path)
+
+
 def test_gaps_and_nans_are_reported_not_hidden(tmp_path, robot):
     path = tmp_path / "a.mcap"
     _write(path, robot, nan_at=100, gap_at=50)
