@@ -26,7 +26,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from js2spec.drives import parse_vector
 from js2spec.errors import ConfigError
@@ -131,11 +130,7 @@ def load_truth(robot_or_path, n: int | None = None) -> SimTruth:
         path = robot_or_path
         if n is None:
             raise ConfigError(path, None, "load_truth(path) needs n, the number of drives")
+    from js2spec.files import load_yaml
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(path, None, "file not found")
-    try:
-        d = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(path, None, f"is not valid YAML ({str(exc).splitlines()[0]})") from None
+    d = load_yaml(path, "simulator truth file")
     return parse_truth(d, n, path, joints=joints)

@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from js2spec.errors import ConfigError
 
@@ -34,13 +33,11 @@ def default_trials_path() -> Path:
 
 
 def load_trials_config(path) -> dict:
+    from js2spec.files import load_yaml
     path = Path(path)
-    if not path.is_file():
+    if not path.is_file() and not path.is_dir():
         raise ConfigError(path, None, "trials file not found; pass --config FILE or add trials.yaml to the robot folder")
-    try:
-        cfg = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as e:
-        raise ConfigError(path, None, f"not valid YAML: {e}") from None
+    cfg = load_yaml(path, "trials file")
     if not isinstance(cfg, dict):
         raise ConfigError(path, None, "must be a mapping with sections control, static, velocity, ...")
     cfg["_path"] = str(path)

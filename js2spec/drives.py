@@ -225,7 +225,6 @@ def parse_drives_yaml(text: str, source: str | Path | None = None) -> DrivesConf
 
 
 def load_drives(path: str | Path) -> DrivesConfig:
+    from .files import read_text
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(path, None, "file not found")
-    return parse_drives_yaml(path.read_text(), path)
+    return parse_drives_yaml(read_text(path, "drives.yaml"), path)

@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from .errors import ConfigError
 
@@ -39,7 +38,8 @@ class IdentifiedModel:
     def urdf_text(self) -> str:
         if self.urdf_path is None or not self.urdf_path.is_file():
             raise ConfigError(self.path, "urdf", "the identified URDF beside model.yaml is missing")
-        return self.urdf_path.read_text()
+        from .files import read_text
+        return read_text(self.urdf_path, "identified URDF")
 
     @property
     def unmodelled(self) -> list[dict]:
@@ -68,10 +68,8 @@ def load_model(path: str | Path) -> IdentifiedModel:
         path = path / "model.yaml"
     if not path.is_file():
         raise ConfigError(path, None, "model file not found (js2-identify writes OUTDIR/model.yaml)")
-    try:
-        d = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ConfigError(path, None, f"is not valid YAML ({str(exc).splitlines()[0]})") from None
+    from .files import load_yaml
+    d = load_yaml(path, "model file")
     if not isinstance(d, dict):
         raise ConfigError(path, None, "must be a YAML mapping")
     joints = d.get("joints")

@@ -21,6 +21,7 @@ import numpy as np
 
 from .drives import DrivesConfig, load_drives
 from .errors import ConfigError
+from .files import read_text
 
 #: The folder of robot configs shipped with js2 (``<repo>/configs``).
 BUILTIN_CONFIGS = Path(__file__).resolve().parents[1] / "configs"
@@ -39,7 +40,7 @@ class RobotConfig:
 
     @property
     def drives_yaml(self) -> str:
-        return (self.folder / "drives.yaml").read_text()
+        return read_text(self.folder / "drives.yaml", "drives.yaml")
 
 
 def config_search_path() -> list[Path]:
@@ -132,6 +133,25 @@ def check_urdf(urdf_text: str, source: str | Path, joints: list[str] | None = No
     return actuated
 
 
+# Objects of the drives' dictionary that the master (js2io) and the simulated drives (hil_sim) both use.
+EDS_REQUIRED = (0x1017, 0x1400, 0x1600, 0x1800, 0x1A00, 0x6040, 0x6041, 0x6060, 0x6061, 0x6064, 0x6071, 0x6072)
+
+
+def check_eds(path: Path) -> None:
+    """The drives' EDS parses (canopen's own importer) and has the CiA 301/402 objects js2 uses."""
+    import canopen
+    try:
+        od = canopen.import_od(str(path))
+    except Exception as e:   # noqa: BLE001 - configparser / canopen raise many kinds; all mean 'not an EDS'
+        msg = " ".join(str(e).split())[:120]
+        raise ConfigError(path, None, f"is not a readable EDS ({type(e).__name__}: {msg}); use the drive "
+                                      f"vendor's EDS file") from None
+    missing = [f"0x{i:04X}" for i in EDS_REQUIRED if i not in od]
+    if missing:
+        raise ConfigError(path, None, f"lacks the objects {', '.join(missing)} that js2 needs (CiA 301/402); "
+                                      f"is it the EDS of a CiA 402 drive?")
+
+
 def load_robot(name_or_path: str | Path) -> RobotConfig:
     """Load and validate ``configs/<name>/`` (or any folder with the same files)."""
     folder = resolve_robot_folder(name_or_path)
@@ -142,13 +162,20 @@ def load_robot(name_or_path: str | Path) -> RobotConfig:
             raise ConfigError(urdf_path, None, "file not found (a robot folder needs robot.urdf)")
         urdf_path = urdfs[0]
     drives = load_drives(folder / "drives.yaml")
-    urdf_text = urdf_path.read_text()
+    urdf_text = read_text(urdf_path, "URDF")
     check_urdf(urdf_text, urdf_path, drives.joints)
 
     def opt(name):
         p = folder / name
-        return p if p.is_file() else None
+        if not p.exists():
+            return None
+        read_text(p, name)       # refused now, in one line, rather than mid-session (EDS, trials, simulator truth)
+        return p
+
+    eds = opt("drives.eds")
+    if eds is not None:
+        check_eds(eds)
 
     return RobotConfig(name=folder.name, folder=folder, urdf_path=urdf_path, urdf_text=urdf_text, drives=drives,
                        sim_truth_path=opt("sim_truth.yaml"), trials_path=opt("trials.yaml"),
-                       eds_path=opt("drives.eds"))
+                       eds_path=eds)
