@@ -122,7 +122,7 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path,
         from tqdm import tqdm
 
         def progress(it, desc=""):
-            return tqdm(it, desc=desc, leave=False)
+            return tqdm(it, desc=desc, leave=False, disable=None)   # None: terminals only
     search = MismatchSearch(kinds=opt.kinds, min_gain=opt.min_gain, max_terms=opt.max_terms,
                             progress=progress).fit(rd)
     loc = locate(rd, search)

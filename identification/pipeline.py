@@ -140,7 +140,7 @@ def _progress(enabled: bool, desc: str):
         return None
     from tqdm import tqdm
 
-    return lambda it: tqdm(it, desc=desc, leave=False, mininterval=0.3)
+    return lambda it: tqdm(it, desc=desc, leave=False, mininterval=0.3, disable=None)   # None: terminals only
 
 
 def load_logs(paths) -> list:

@@ -321,7 +321,10 @@ class Session:
             if self.progress:
                 from tqdm import tqdm
                 total = int(sum(t.estimate_s() for t in self.trials) * self.g.cycle_hz)
-                self._bar = tqdm(total=total, unit="cyc", desc="js2-acquire", smoothing=0.05)
+                # disable=None: no bar when stderr is not a terminal (a CI log, a file): no carriage-return spam
+                self._bar = tqdm(total=total, unit="cyc", desc="js2-acquire", smoothing=0.05, disable=None)
+                if self._bar.disable:
+                    self._bar = None
             self._enable()
             for k_trial, trial in enumerate(self.trials):
                 self.current_trial = trial.name

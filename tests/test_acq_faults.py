@@ -215,3 +215,18 @@ def test_bus_gone_summary_does_not_claim_disabled(tmp_path, cfg):
     assert res.aborted and "\n" not in res.reason
     assert res.final_states == ["NOT CONFIRMED DISABLED (no answer)"] * 6, res.final_states
     assert "OPERATION ENABLED" not in res.text().split("drives at the end:")[1]
+
+
+def test_progress_bar_only_on_a_terminal(tmp_path, cfg, monkeypatch):
+    """stderr redirected to a file (CI, a log): no bar, so no carriage-return updates fill the file."""
+    import io
+    err = io.StringIO()
+    monkeypatch.setattr("sys.stderr", err)
+    from js2io.session import Session, open_log
+    from js2io.trials import TrialContext, make_trials
+    g = DirectDriveGroup(ROBOT)
+    g.open()
+    w = open_log(tmp_path / "p.mcap", ROBOT, g, cfg)
+    res = Session(g, w, make_trials(["excitation"], TrialContext(ROBOT.drives, 1 / 500, cfg)), progress=True).run()
+    assert not res.aborted, res.text()
+    assert "\r" not in err.getvalue() and "cyc" not in err.getvalue()
