@@ -294,7 +294,7 @@ class CanopenDriveGroup(DriveGroup):
 
     def _on_emcy(self, i, err):
         code = int(err.code)
-        desc = err.get_desc() or _emcy_name(code)
+        desc = cia402.EMCY_NAMES.get(code) or err.get_desc() or "error"   # the project's specific names first
         fatal = code != 0
         self.push_event(DriveEvent("emcy", f"EMCY node {self.node_ids[i]} (drive {i}): 0x{code:04X} {desc} "
                                    f"(error register 0x{err.register:02X})", joint=i, fatal=fatal, code=code))
@@ -395,10 +395,6 @@ class CanopenDriveGroup(DriveGroup):
         except Exception:
             pass
         self._opened = False
-
-
-def _emcy_name(code: int) -> str:
-    return cia402.EMCY_NAMES.get(code, "error")
 
 
 def _sleep_until(t_target: float) -> None:

@@ -71,6 +71,24 @@ def plan_text(robot, cfg, trials, cycle_hz) -> str:
     return "\n".join(lines)
 
 
+def _parse_faults(specs, trials, cycle_hz):
+    """The --sim-fault specs, parsed now (a bad one is refused before anything starts); each gets `.spec`. A fault
+    timed after the planned session is said at once: it would never fire."""
+    if not specs:
+        return []
+    from hil_sim.drives_core import Fault
+    planned = int(sum(t.estimate_s() for t in trials) * cycle_hz)
+    out = []
+    for s in specs:
+        f = Fault.parse(s)
+        f.spec = s
+        if f.at_cycle > planned:
+            print(f"js2-acquire: warning: --sim-fault {s}: cycle {f.at_cycle} lies after the planned session "
+                  f"(~{planned} cycles); it will not fire unless the trials run longer", file=sys.stderr)
+        out.append(f)
+    return out
+
+
 def check_output(path: str, force: bool) -> None:
     """Refuse, before any bus traffic, an -o that would lose data or cannot be written."""
     import os
@@ -133,6 +151,7 @@ def _run(args) -> int:
     if not args.output:
         raise Js2Error("-o/--output FILE.mcap is required (or --dry-run)")
     check_output(args.output, args.force)
+    faults = _parse_faults(args.sim_fault, trials, cycle_hz)
     try:
         if args.direct:
             from hil_sim.direct import DirectDriveGroup
@@ -178,6 +197,10 @@ def _run(args) -> int:
         finally:
             for s_, h in old.items():
                 signal.signal(s_, h)
+        for f in faults:
+            if f.at_cycle >= res.cycles:
+                res.warnings.append(f"--sim-fault {f.spec}: never fired (the session ended at cycle {res.cycles}, "
+                                    f"before cycle {f.at_cycle})")
         print(res.text())
         return 1 if res.aborted else 0
     finally:

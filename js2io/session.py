@@ -102,6 +102,7 @@ class SessionResult:
     max_abs_command: list = field(default_factory=list)
     final_states: list = field(default_factory=list)
     stop_errors: list = field(default_factory=list)   # what failed while stopping (one line each)
+    warnings: list = field(default_factory=list)      # what the user should know although nothing stopped
     log_error: str | None = None
     debug_path: str | None = None          # full traceback of an unexpected error, if one was written
 
@@ -114,6 +115,7 @@ class SessionResult:
             lines.append(f"  {name:<12} {status}{': ' + extra if extra else ''}")
         lines.append(f"max |commanded torque| per drive (N*m): {self.max_abs_command}")
         lines.append(f"drives at the end: {', '.join(self.final_states)}")
+        lines += [f"WARNING: {w}" for w in self.warnings]
         if self.aborted:
             lines.append(f"ABORTED: {self.reason}")
         if self.log_error:
@@ -150,6 +152,8 @@ class Session:
         self.qmax = np.asarray(d.position_max, dtype=float) if d.position_max is not None else None
         self._bar = None
         self.confirmed = np.zeros(self.n, dtype=bool)      # drive answered with a disabled state after that
+        self.at_limit = np.zeros(self.n, dtype=int)        # this trial's cycles commanded at the torque limit
+        self.active = np.zeros(self.n, dtype=int)          # ... and with any torque commanded
 
     # ------------------------------------------------------------------ logging helpers
     def _event(self, kind: str, **fields) -> None:
@@ -165,7 +169,10 @@ class Session:
 
     def _send(self, command: Command | None) -> None:
         sent = self.g.send(command)
-        self.max_cmd = np.maximum(self.max_cmd, np.abs(sent.target_torque))
+        tau = np.abs(sent.target_torque)
+        self.max_cmd = np.maximum(self.max_cmd, tau)
+        self.active += tau > 0
+        self.at_limit += tau >= self.g.torque_limit * (1 - 1e-6)
         self.w.command(self.fb.cycle, self.fb.t, sent.mode, sent.target_torque,
                        target_velocity=sent.target_velocity)
 
@@ -285,6 +292,21 @@ class Session:
         except Exception as e:   # noqa: BLE001
             self._stop_error(f"while disabling the drives: {one_line(e)}")
 
+    SATURATION_WARN = 0.25     # fraction of a drive's active cycles at the torque limit that earns a warning
+
+    def _warn_saturation(self, trial: str) -> None:
+        """A drive held at the torque limit for much of a trial: the trial asked for more than the limit allows
+        (breakaways not reached, strokes not followed). Said once per trial and drive; counters reset."""
+        frac = self.at_limit / np.maximum(self.active, 1)
+        for i in np.flatnonzero((frac > self.SATURATION_WARN) & (self.active > 0.2 * self.g.cycle_hz)):
+            self.result.warnings.append(
+                f"drive {i} ({self.g.drives.joints[i]}) was commanded at its torque limit "
+                f"{self.g.torque_limit[i]:g} N*m in {100 * frac[i]:.0f} % of its active cycles during '{trial}': "
+                f"results of that trial may be missing or biased; raise torque_limit in drives.yaml (within the "
+                f"drive's rating) or ask less of the trial")
+        self.at_limit[:] = 0
+        self.active[:] = 0
+
     def _stop_error(self, detail: str) -> None:
         self.result.stop_errors.append(detail)
         try:
@@ -349,6 +371,7 @@ class Session:
                         self._sync()
                 finally:
                     res.trials.append((trial.name, status, trial.summary))
+                    self._warn_saturation(trial.name)
                     if status == "done":
                         self._event("trial_end")
             stop_how = "ramp"
@@ -393,6 +416,7 @@ class Session:
             "cycles": res.cycles, "lost_tpdo_per_drive": res.lost, "invalid_cycles": res.invalid_cycles,
             "aborted": res.aborted, "reason": res.reason or "",
             "drives_disabled_confirmed": ",".join(str(bool(c)).lower() for c in self.confirmed),
+            "warnings": " | ".join(res.warnings),
             "trials": ",".join(f"{n}:{s}" for n, s, _ in res.trials)})
         self.w.close()
         res.log_error = self.w.error

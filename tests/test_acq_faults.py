@@ -82,6 +82,8 @@ def test_fault_stops_trial_safely(tmp_path, cfg, fault, detail):
     else:
         _assert_disabled(sim_set, skip=(4,) if fault.startswith("dead") else ())
     _check_log(path, detail_has=detail)
+    if fault.startswith("drive_fault"):     # the project's specific name, not canopen's generic class
+        assert "0x2310 continuous over-current" in res.reason, res.reason
 
 
 def test_bus_error_drives_quick_stop_without_master(tmp_path, cfg):
@@ -230,3 +232,27 @@ def test_progress_bar_only_on_a_terminal(tmp_path, cfg, monkeypatch):
     res = Session(g, w, make_trials(["excitation"], TrialContext(ROBOT.drives, 1 / 500, cfg)), progress=True).run()
     assert not res.aborted, res.text()
     assert "\r" not in err.getvalue() and "cyc" not in err.getvalue()
+
+
+class Saturating(Trial):
+    """Test trial: asks drive 3 for twice its torque limit, alternating sign at 5 Hz, for 0.4 s (the others
+    free: longer and the unheld shoulder sags out of the envelope)."""
+    name = "saturating"
+
+    def step(self, fb):
+        from js2io.trials import TrialStep
+        tau = np.zeros(self.ctx.n)
+        tau[3] = 2 * ROBOT.drives.torque_limit[3] * np.sign(np.sin(2 * np.pi * 5 * fb.t) + 1e-9)
+        return TrialStep(Command(tau, mode=np.full(self.ctx.n, 10)), [], done=fb.cycle > 200)
+
+
+def test_saturation_is_warned_and_clamped(tmp_path, cfg):
+    from js2io.trials import TrialContext
+    ctx = TrialContext(ROBOT.drives, 1 / 500, cfg)
+    g = DirectDriveGroup(ROBOT)
+    res = run_trials(g, ROBOT, [Saturating(ctx)], tmp_path / "s.mcap", trials_config=cfg)
+    assert not res.aborted, res.text()
+    assert len(res.warnings) == 1 and "drive 3" in res.warnings[0] and "'saturating'" in res.warnings[0]
+    assert "WARNING: drive 3" in res.text()
+    assert res.max_abs_command[3] == pytest.approx(ROBOT.drives.torque_limit[3], abs=1e-4)
+    log = _check_log(tmp_path / "s.mcap", kinds=("trial_start", "trial_end"))

@@ -189,3 +189,13 @@ def test_cli_output_checked_before_the_bus(tmp_path, capsys):
         assert err.count("\n") == 1 and what in err and "Traceback" not in err, err
     assert old.read_bytes() == b"precious"
     assert not (tmp_path / "no").exists()
+
+
+def test_cli_warns_of_faults_that_never_fire(tmp_path, capsys):
+    from js2io.cli import main
+    rc = main(["--trial", "validation", "--direct", "-o", str(tmp_path / "x.mcap"), "--no-progress",
+               "--sim-fault", "drive_fault:1@999999"])
+    cap = capsys.readouterr()
+    assert rc == 0
+    assert "lies after the planned session" in cap.err
+    assert "WARNING: --sim-fault drive_fault:1@999999: never fired" in cap.out
