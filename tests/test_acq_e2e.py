@@ -221,3 +221,112 @@ def test_simulator_process_killed_mid_trial(tmp_path):
     assert "OPERATION ENABLED" not in end and "NOT CONFIRMED DISABLED (no answer)" in end, so
     assert all("\n" not in e.get("detail", "") for e in log.events)
     assert "Traceback" not in so
+
+
+def _statuswords_over_sdo(port, robot="js2"):
+    """Ask every simulated drive for its statusword (0x6041) over SDO, as a service tool would."""
+    import canopen
+
+    from js2spec.robot import load_robot
+    rb = load_robot(robot)
+    net = canopen.Network(can.Bus(interface="socketcand", channel="js2", host="127.0.0.1", port=port))
+    net.connect()
+    try:
+        out = []
+        for nid in range(1, rb.drives.n + 1):
+            node = canopen.RemoteNode(nid, str(rb.eds_path))
+            net.add_node(node)
+            out.append(int(node.sdo[0x6041].raw))
+        return out
+    finally:
+        net.disconnect()
+
+
+def test_simulator_frozen_mid_trial(tmp_path):
+    """js2-sim SIGSTOPped (a hung drive process): the master aborts in one line, claims no drive disabled it could
+    not confirm, leaves a readable log; once the drives run again they are out of OPERATION ENABLED by themselves
+    (the master's heartbeat is gone), asked over SDO."""
+    from js2io import cia402
+    sim, port = _start_sim()
+    out = tmp_path / "frozen.mcap"
+    acq = subprocess.Popen([str(BIN / "js2-acquire"), "-i", "socketcand", "-c", "js2", "--bus-arg", f"port={port}",
+                            "--trial", "velocity", "-o", str(out), "--no-progress"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        t_end = time.monotonic() + 60
+        while time.monotonic() < t_end and (not out.exists() or out.stat().st_size < 100_000):
+            time.sleep(0.05)
+        sim.send_signal(signal.SIGSTOP)
+        so, se = acq.communicate(timeout=120)
+        sim.send_signal(signal.SIGCONT)
+        time.sleep(1.5)        # > 3 x the master's heartbeat period: the drives' consumer has timed out
+        states = [cia402.state_of(s) for s in _statuswords_over_sdo(port)]
+    finally:
+        if acq.poll() is None:
+            acq.kill()
+        sim.send_signal(signal.SIGCONT)
+        sim.kill()
+        sim.wait()
+    assert acq.returncode == 1, so + se
+    assert "Traceback" not in so + se
+    reason = [ln for ln in so.splitlines() if ln.startswith("ABORTED:")]
+    assert len(reason) == 1 and any(w in reason[0] for w in ("TPDOs lost", "heartbeat", "bus error")), so
+    end = so.split("drives at the end:")[1].splitlines()[0]
+    assert "OPERATION ENABLED" not in end and "NOT CONFIRMED DISABLED (no answer)" in end, so
+    log = read_log(out)
+    assert "abort" in [e["kind"] for e in log.events]
+    assert np.all(np.abs(log.command.target_torque) <= np.asarray(log.drives.torque_limit) + 1e-12)
+    assert cia402.ENABLED not in states, states
+
+
+def test_killed_writer_then_repair_opens_in_generic_readers(tmp_path):
+    """kill -9 of the master mid-trial: mcap's own reader gets nothing out of the file (no footer); js2-repair makes
+    it a complete MCAP with every recoverable message."""
+    from mcap.reader import make_reader
+    out = tmp_path / "kill.mcap"
+    p = subprocess.Popen([str(BIN / "js2-acquire"), "--trial", "static", "-o", str(out), "--no-progress", "--direct"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    t_end = time.monotonic() + 60
+    while time.monotonic() < t_end and (not out.exists() or out.stat().st_size < 300_000):
+        time.sleep(0.05)
+    p.kill()
+    p.wait(timeout=10)
+    n = len(read_log(out).feedback)
+    r = subprocess.run([str(BIN / "js2-repair"), str(out)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and "truncated" in r.stdout, r.stdout + r.stderr
+    with open(tmp_path / "kill.repaired.mcap", "rb") as f:
+        assert sum(1 for _ in make_reader(f).iter_messages(topics=["/js2/feedback"])) == n
+
+
+def _small_disk(tmp_path):
+    """A 300 kB tmpfs if this machine lets us mount one (root), else None."""
+    import os
+    d = tmp_path / "small"
+    d.mkdir()
+    if os.geteuid() != 0:
+        return None
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=300k", "tmpfs", str(d)], capture_output=True)
+    return d if r.returncode == 0 else None
+
+
+def test_full_disk_cli(tmp_path):
+    """`js2-acquire -o` on a disk that fills up mid-trial (a real 300 kB tmpfs where we may mount one, else a
+    300 kB file-size limit): exit 1, the drives confirmed disabled, the log failure in one line after them."""
+    import resource
+    small = _small_disk(tmp_path)
+    out = (small or tmp_path) / "x.mcap"
+
+    def limit():                 # fallback: the kernel refuses writes beyond 300 kB (EFBIG), like a full disk
+        if small is None:
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (300_000, 300_000))
+    try:
+        r = subprocess.run([str(BIN / "js2-acquire"), "--trial", "static", "-o", str(out), "--no-progress"],
+                           capture_output=True, text=True, timeout=300, preexec_fn=limit)
+    finally:
+        if small is not None:
+            subprocess.run(["umount", str(small)])
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "Traceback" not in r.stdout + r.stderr
+    assert "drives at the end: " + ", ".join(["SWITCH ON DISABLED"] * 6) in r.stdout, r.stdout
+    assert "ABORTED: log write failed" in r.stdout and "LOG INCOMPLETE" in r.stdout
