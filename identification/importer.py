@@ -33,22 +33,71 @@ class Recording:
     extra: dict = field(default_factory=dict)
 
 
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
+MISSING = ("", "nan", "NaN", "NAN", "NA", "n/a")     # cells read as missing (NaN): the NaN policy decides
+
+
+def _read_csv(path: Path) -> tuple[np.ndarray, list[str]]:
+    """A numeric CSV (header optional) as a float matrix. Empty and 'nan'/'NA' cells are NaN (missing); any other
+    cell that is not a number is refused with its row and column (never silently NaN)."""
+    import csv
+
+    from js2spec.files import read_text
+    text = read_text(path, "CSV file")
+    rows = list(csv.reader(text.splitlines()))
+    if not rows:
+        raise ImportError_(f"{path}: empty file")
+    first = [c.strip() for c in rows[0]]
+
+    def is_num(c):
+        try:
+            float(c)
+            return True
+        except ValueError:
+            return c in MISSING
+    has_header = not all(is_num(c) for c in first)
+    names = first if has_header else [f"c{i}" for i in range(len(first))]
+    body = rows[1:] if has_header else rows
+    body = [r for r in body if r and any(c.strip() for c in r)]
+    if not body:
+        raise ImportError_(f"{path}: no data rows")
+    width = len(names)
+    arr = np.full((len(body), width), np.nan)
+    bad = []
+    line0 = 2 if has_header else 1
+    for i, r in enumerate(body):
+        if len(r) != width:
+            raise ImportError_(f"{path}: data row {i + line0} has {len(r)} cells, the header {width}; "
+                               f"fix the row or the delimiter (comma expected)")
+        for j, c in enumerate(r):
+            c = c.strip()
+            try:
+                arr[i, j] = float(c)
+            except ValueError:
+                if c not in MISSING:
+                    bad.append((i + line0, names[j], c))
+    if bad:
+        shown = "; ".join(f"line {ln}, column {col!r}: {val[:20]!r}" for ln, col, val in bad[:3])
+        more = f" (and {len(bad) - 3} more)" if len(bad) > 3 else ""
+        raise ImportError_(f"{path}: {len(bad)} cells are not numbers: {shown}{more}; fix them or leave them "
+                           f"empty (empty = missing, handled by --nan)")
+    return arr, names
+
+
 def _read_table(path: Path, n: int | None = None, columns=None) -> tuple[np.ndarray, list[str]]:
     """A CSV (header optional) or .npy file as a float matrix."""
+    if path.is_dir():
+        raise ImportError_(f"{path}: is a folder; give the file")
     if not path.is_file():
         raise ImportError_(f"{path}: file not found")
     if path.suffix == ".npy":
-        arr = np.load(path)
+        try:
+            arr = np.asarray(np.load(path, allow_pickle=False), dtype=float)
+        except (ValueError, OSError, TypeError) as exc:
+            raise ImportError_(f"{path}: not a numeric .npy array ({' '.join(str(exc).split())[:80]})") from None
         names = [f"c{i}" for i in range(arr.shape[1] if arr.ndim == 2 else 1)]
     else:
-        with open(path) as f:
-            first = f.readline()
-        has_header = any(c.isalpha() and c not in "eE" for c in first.replace("nan", "").replace("NaN", ""))
-        try:
-            arr = np.genfromtxt(path, delimiter=",", skip_header=1 if has_header else 0, dtype=float)
-        except ValueError as exc:
-            raise ImportError_(f"{path}: not a numeric CSV ({exc})") from None
-        names = [c.strip() for c in first.strip().split(",")] if has_header else [f"c{i}" for i in range(arr.shape[1])]
+        arr, names = _read_csv(path)
     if arr.ndim == 1:
         arr = arr[:, None]
     if columns is not None:
@@ -67,9 +116,15 @@ def _read_table(path: Path, n: int | None = None, columns=None) -> tuple[np.ndar
 
 def load_npz(path: Path, time_key="times", position_key="positions", torque_key="torques",
              current_key=None) -> Recording:
+    if path.is_dir():
+        raise ImportError_(f"{path}: is a folder; give the .npz file")
     if not path.is_file():
         raise ImportError_(f"{path}: file not found")
-    d = np.load(path)
+    try:
+        d = np.load(path, allow_pickle=False)
+        d.keys()
+    except (ValueError, OSError, EOFError) as exc:
+        raise ImportError_(f"{path}: not a NumPy .npz archive ({' '.join(str(exc).split())[:80]})") from None
     for k in (time_key, position_key):
         if k not in d:
             raise ImportError_(f"{path}: no array {k!r} (arrays: {', '.join(d.keys())})")
@@ -110,21 +165,37 @@ def load_csvs(positions: Path, torques: Path | None = None, currents: Path | Non
     return Recording(t=t, position=pos, torque=tq, current=cu, source=what)
 
 
+def check_time_step(t: np.ndarray, source: str, time_unit: str) -> None:
+    """Servo recordings are sampled at 50 Hz..50 kHz; a median step outside that is a unit mistake: say which."""
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    if not dt > 0:
+        raise ImportError_(f"{source}: time stamps do not advance (median step {dt:g})")
+    hz = 1.0 / dt
+    if hz < 50.0:
+        hint = ", ".join(f"{u}: {hz / f * TIME_UNITS[time_unit]:.0f} Hz" for u, f in TIME_UNITS.items()
+                         if u != time_unit and 50 <= hz / f * TIME_UNITS[time_unit] <= 50_000)
+        raise ImportError_(f"{source}: median time step {dt:g} s ({hz:.3g} Hz) is not a servo rate; is the time "
+                           f"in another unit? Pass --time-unit ({hint or 's, ms or us'}) or --rate HZ")
+    if hz > 50_000:
+        raise ImportError_(f"{source}: median time step {dt:g} s ({hz:.3g} Hz) is faster than any servo log; check "
+                           f"the time column and --time-unit")
+
+
 def write_log(rec: Recording, urdf_path: Path, drives_path: Path, out: Path, robot: str | None = None,
               rate: float | None = None, positions_side: str = "motor", trials: list[tuple] | None = None,
-              rows: tuple | None = None, source_text: str | None = None) -> Path:
+              rows: tuple | None = None, source_text: str | None = None, time_unit: str = "s",
+              nan_policy: str = "mark", unit_check: bool = True, report: dict | None = None) -> Path:
     """Write ``rec`` as a js2 log. ``trials``: list of (name, t0, t1) seconds from the start of the recording
     (default: the whole recording as one ``excitation`` trial); each becomes trial_start/segment_start/segment_end/
     trial_end events."""
+    from js2spec.files import read_text
     drives = load_drives(drives_path)
-    if not urdf_path.is_file():
-        raise ConfigError(urdf_path, None, "file not found")
-    urdf_text = urdf_path.read_text()
+    urdf_text = read_text(urdf_path, "URDF")
     # joints must match; nominal inertials may be incomplete (identification replaces them), so a zero inertia on a
     # link is accepted here where js2spec.robot.check_urdf (for simulation) would refuse it
     from .regressor import arm_model
 
-    arm_model(urdf_text, drives, urdf_name=str(urdf_path))
+    arm = arm_model(urdf_text, drives, urdf_name=str(urdf_path))
     n = drives.n
     N = len(rec.t)
     for name, arr in (("positions", rec.position), ("torques", rec.torque), ("currents", rec.current)):
@@ -142,9 +213,13 @@ def write_log(rec: Recording, urdf_path: Path, drives_path: Path, out: Path, rob
     bad = ~np.isfinite(rec.t)
     if bad.any():
         raise ImportError_(f"{rec.source}: {int(bad.sum())} time stamps are NaN/inf")
-    t = rec.t - rec.t[0]
+    if time_unit not in TIME_UNITS:
+        raise ImportError_(f"time unit {time_unit!r}: one of {', '.join(TIME_UNITS)}")
+    t = (rec.t - rec.t[0]) * TIME_UNITS[time_unit]
     if np.any(np.diff(t) < 0):
         raise ImportError_(f"{rec.source}: time stamps go backwards")
+    if not rate:
+        check_time_step(t, rec.source, time_unit)
     rate = float(rate) if rate else float(1.0 / np.median(np.diff(t)))
     cycle = np.round(t * rate).astype(np.int64)
     first = np.concatenate([[True], np.diff(cycle) > 0])
@@ -163,6 +238,20 @@ def write_log(rec: Recording, urdf_path: Path, drives_path: Path, out: Path, rob
         cu = tq / kt
     valid = np.isfinite(qm) & np.isfinite(tq)
     nan_rows = int(np.sum(~np.all(valid, axis=1)))
+    if nan_rows and nan_policy == "refuse":
+        k = int(np.flatnonzero(~np.all(valid, axis=1))[0])
+        raise ImportError_(f"{rec.source}: {nan_rows} samples have missing/NaN values (first at sample {k}, "
+                           f"t = {t[k]:.4f} s); --nan mark imports them as invalid samples instead")
+    if nan_policy not in ("mark", "refuse"):
+        raise ImportError_(f"NaN policy {nan_policy!r}: 'mark' or 'refuse'")
+    if nan_rows * 2 > N:
+        raise ImportError_(f"{rec.source}: {nan_rows} of {N} samples have missing/NaN values; too few to identify "
+                           f"from (check the columns and the delimiter)")
+    if unit_check:
+        from .unit_check import check_torque_units
+        check_torque_units(arm, t, qm, tq, rec.source)
+    if report is not None:
+        report.update(samples=N, nan_rows=nan_rows, rate_hz=rate)
     robot = robot or drives_path.parent.name or "imported"
     src = source_text or f"import:{rec.source}"
     if not src.startswith("import"):
@@ -193,5 +282,6 @@ def write_log(rec: Recording, urdf_path: Path, drives_path: Path, out: Path, rob
             w.event(ev[ei][0], ev[ei][1], ev[ei][2])
             ei += 1
         w.metadata("import", {"samples": N, "duplicates_dropped": int(N - first.sum()),
-                              "rows_with_nan": nan_rows, "positions_side": positions_side})
+                              "rows_with_nan": nan_rows, "nan_policy": nan_policy, "positions_side": positions_side,
+                              "time_unit": time_unit, "unit_check": "on" if unit_check else "off"})
     return out

@@ -49,6 +49,13 @@ def parser():
     src.add_argument("--time", type=Path, help="CSV with the time stamps (s) in its first column")
     src.add_argument("--positions-side", choices=["motor", "joint"], default="motor",
                      help="are the positions motor angles (default) or joint angles")
+    src.add_argument("--time-unit", choices=["s", "ms", "us"], default="s",
+                     help="unit of the time stamps (default s); a rate that is not a servo rate is refused with a hint")
+    p.add_argument("--nan", choices=["mark", "refuse"], default="mark",
+                   help="samples with missing/NaN values: mark them invalid (default; the count is printed) or refuse")
+    p.add_argument("--no-unit-check", action="store_true",
+                   help="skip the check of the torques' units against the nominal URDF (a factor like 1000, 180/pi "
+                        "or a gear ratio is refused otherwise)")
     p.add_argument("--urdf", type=Path, required=True, help="URDF of the arm")
     p.add_argument("--drives", type=Path, required=True, help="drives.yaml of the arm (keys of the js2 log spec)")
     p.add_argument("--trial", action="append", default=[], metavar="NAME:START:STOP",
@@ -90,15 +97,26 @@ def main(argv=None) -> int:
         if args.rows:
             a, b = args.rows.split(":")
             rows = (int(a) if a else None, int(b) if b else None)
+        if args.output.is_dir():
+            raise im.ImportError_(f"-o {args.output}: is a folder; give a file name, e.g. {args.output / 'rec.mcap'}")
+        if not args.output.parent.is_dir():
+            raise im.ImportError_(f"-o {args.output}: the folder {args.output.parent} does not exist; create it first")
+        report: dict = {}
         out = im.write_log(rec, args.urdf, args.drives, args.output, robot=args.robot, rate=args.rate,
-                           positions_side=args.positions_side, trials=trials or None, rows=rows)
+                           positions_side=args.positions_side, trials=trials or None, rows=rows,
+                           time_unit=args.time_unit, nan_policy=args.nan, unit_check=not args.no_unit_check,
+                           report=report)
     except Js2Error as exc:
         print(f"js2-import: error: {exc}", file=sys.stderr)
         return 2
     except (ValueError, OSError) as exc:
         print(f"js2-import: error: {exc}", file=sys.stderr)
         return 2
-    print(f"js2-import: wrote {out} ({len(rec.t)} samples, {drives.n} joints, torque side {drives.torque_side})")
+    print(f"js2-import: wrote {out} ({len(rec.t)} samples at {report['rate_hz']:.6g} Hz, {drives.n} joints, "
+          f"torque side {drives.torque_side})")
+    if report["nan_rows"]:
+        print(f"js2-import: {report['nan_rows']} samples with missing/NaN values marked invalid (--nan refuse to "
+              f"stop instead)")
     return 0
 
 

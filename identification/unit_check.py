@@ -1,0 +1,95 @@
+"""Is a recording's torque in the units drives.yaml says? A check against the nominal model, before identifying.
+
+The nominal URDF predicts the rigid-body torque (RNEA, eq. 1 without the drive terms) along the recorded motion.
+Friction and a rough URDF make the prediction imperfect, but a unit mistake is a clean factor: per joint, the
+least-squares scale of measured on predicted torque lands near 1000 (mN m), 1/1000, 180/pi, pi/180 or a gear ratio
+(joint torques declared motor side, or the reverse). Such a joint is refused with a one-line hint; a joint whose
+prediction explains too little of the measurement (correlation below 0.6) is not judged.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from js2spec.errors import Js2Error
+
+MIN_CORRELATION = 0.6      # below: the nominal model does not explain the joint well enough to judge its units
+TOLERANCE = 0.35           # a scale within +-35 % of a suspicious factor (and outside 1/2..2) is called a unit error
+
+
+class UnitError(Js2Error):
+    """A recording's torques or times look like they are in another unit than declared."""
+
+
+def suspicious_factors(gear_ratios) -> list[tuple[float, str]]:
+    """(factor, explanation) for the unit mistakes seen in practice."""
+    out = [(1000.0, "1000x too large: torques in mN m? (or currents in mA)"),
+           (1e-3, "1000x too small: torques in kN m? (or currents in kA)"),
+           (180 / np.pi, "57.3x (180/pi) too large: a degree/radian mix-up?"),
+           (np.pi / 180, "57.3x (180/pi) too small: a degree/radian mix-up?")]
+    ratios = {round(max(abs(float(x)), 1 / abs(float(x))), 6) for x in gear_ratios if x != 0}
+    for g in sorted(r for r in ratios if r >= 1.5):
+        out.append((g, f"{g:g}x (a gear ratio) too large: joint-side torques declared motor side in drives.yaml?"))
+        out.append((1 / g, f"{g:g}x (a gear ratio) too small: motor-side torques declared joint side?"))
+    return out
+
+
+def explain_scale(scale: float, gear_ratios) -> str | None:
+    """The unit mistake a measured/expected torque ratio looks like, or None."""
+    if not np.isfinite(scale) or scale <= 0 or 0.5 <= scale <= 2.0:
+        return None
+    for f, why in suspicious_factors(gear_ratios):
+        if abs(np.log(scale / f)) < np.log1p(TOLERANCE):
+            return why
+    return None
+
+
+def nominal_torque(arm, t: np.ndarray, q_motor: np.ndarray, max_samples: int = 4000):
+    """Rigid-body torque of the nominal URDF along the motion, on the drives' torque side: (index, tau)."""
+    import pinocchio as pin
+    from scipy.signal import butter, sosfiltfilt
+
+    fs = 1.0 / float(np.median(np.diff(t)))
+    q = arm.joint_from_motor(np.nan_to_num(q_motor))
+    fc = min(10.0, 0.2 * fs)
+    sos = butter(4, fc, fs=fs, output="sos")
+    qf = sosfiltfilt(sos, q, axis=0) if len(q) > 30 else q
+    dq = np.gradient(qf, t, axis=0)
+    ddq = np.gradient(dq, t, axis=0)
+    idx = np.linspace(0, len(t) - 1, min(len(t), max_samples)).astype(int)
+    model = arm.model
+    data = model.createData()
+    tau = np.zeros((len(idx), arm.n))
+    qp, vp, ap = np.zeros(model.nq), np.zeros(model.nv), np.zeros(model.nv)
+    for r, k in enumerate(idx):
+        qp[arm.idx_v], vp[arm.idx_v], ap[arm.idx_v] = q[k], dq[k], ddq[k]
+        tj = pin.rnea(model, data, qp, vp, ap)[arm.idx_v]
+        tau[r] = tj if arm.torque_side == "joint" else arm.K.T @ tj
+    return idx, tau
+
+
+def check_torque_units(arm, t: np.ndarray, q_motor: np.ndarray, tau_measured: np.ndarray, source: str) -> list:
+    """Raise UnitError naming the joint and the likely mistake; returns per joint (scale, correlation)."""
+    if len(t) < 50:
+        return []
+    idx, tau_nom = nominal_torque(arm, t, q_motor)
+    meas = tau_measured[idx]
+    gears = np.diag(arm.K)
+    out = []
+    for j in range(arm.n):
+        ok = np.isfinite(meas[:, j])
+        a, b = tau_nom[ok, j], meas[ok, j]
+        a, b = a - a.mean(), b - b.mean()        # offsets (friction asymmetry, sensor bias) are not units
+        if a.std() == 0 or b.std() == 0:
+            out.append((np.nan, 0.0))
+            continue
+        corr = float(np.corrcoef(a, b)[0, 1])
+        scale = float(a @ b / (a @ a))
+        out.append((scale, corr))
+        if corr < MIN_CORRELATION:
+            continue
+        why = explain_scale(scale, gears)
+        if why:
+            raise UnitError(f"{source}: joint {arm.joints[j]}: torques look {why} (measured = {scale:.4g} x what "
+                            f"the nominal URDF predicts along the recorded motion, correlation {corr:.2f}); fix "
+                            f"the units or drives.yaml, or pass --no-unit-check if the URDF is that far off")
+    return out
