@@ -507,3 +507,23 @@ def _command_arrays(path: Path, raws: list[bytes], n: int) -> CommandArrays:
 
 def read_logs(paths: Iterable[str | Path]) -> list[Js2Log]:
     return [read_log(p) for p in paths]
+
+
+def damage_notes(paths: Iterable[str | Path]) -> list[str]:
+    """'<path>: <what was lost>' for each damaged log among `paths` (truncated, corrupt, repaired): what a CLI adds
+    to an error met on such a log ("no velocity trial" may only mean the trial was in the lost part)."""
+    out = []
+    for p in paths:
+        p = Path(p)
+        if not p.is_file():
+            continue
+        try:
+            scan = McapScan(p)
+            for rec in scan.records():
+                if rec.__class__.__name__ == "Metadata" and rec.name == "js2_repair":
+                    out.append(f"{p}: repaired by js2-repair ({rec.metadata.get('damage', '')})")
+            if scan.damage or not scan.complete:
+                out.append(f"{p}: {scan.note()}")
+        except Exception:   # noqa: BLE001 - this only adds context to an error already being reported
+            continue
+    return out

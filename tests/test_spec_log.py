@@ -198,3 +198,13 @@ def test_refuses_wrong_version_missing_parts_and_bad_arrays(tmp_path, robot):
         with pytest.raises(LogError) as err:
             read_log(p)
         assert msg in str(err.value) and str(p) in str(err.value)
+
+
+def test_damage_notes_name_the_damaged_logs(tmp_path, robot):
+    from js2spec.log import damage_notes
+    good = tmp_path / "good.mcap"
+    _write(good, robot, n_cycles=3000)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(good.read_bytes()[:len(good.read_bytes()) // 2])
+    notes = damage_notes([good, cut, tmp_path / "missing.mcap"])
+    assert len(notes) == 1 and notes[0].startswith(f"{cut}: truncated")
