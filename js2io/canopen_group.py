@@ -318,8 +318,10 @@ class CanopenDriveGroup(DriveGroup):
         self.network.check()          # re-raise what killed the receive thread (bus errors)
         self._got[:] = False
         self._ngot = 0
-        # a drive that missed 3 cycles in a row is not waited for (still read when it answers)
-        self._expect = self._miss < 3
+        # lock-step: a drive that missed 3 cycles in a row is not waited for (still read when it answers). Real time:
+        # every drive is waited for up to the deadline (the time is the period's anyway): not waiting would drop its
+        # late answers before every SYNC and leave its feedback stale for good
+        self._expect = self._miss < 3 if not self.realtime else np.ones(self.n, dtype=bool)
         self._nexpect = int(self._expect.sum())
         self._done.clear()
         if self._nexpect == 0:
