@@ -114,9 +114,9 @@ def _run(args) -> int:
     from .session import Session, open_log
     from .trials import TrialContext, expand_trial_names, load_trials_config, make_trials
 
-    from .rt import set_realtime_priority
+    from .rt import realtime_setup
     robot = load_robot(args.robot)
-    sched = set_realtime_priority(args.rt_priority)
+    sched = realtime_setup(args.rt_priority)
     cfg_path = args.config or robot.trials_path
     if cfg_path is None:
         from .trials import default_trials_path

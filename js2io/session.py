@@ -61,9 +61,17 @@ class GuardedLog:
     exception, so neither the trial's abort nor the drives' stop can be skipped by the log."""
 
     def __init__(self, writer: LogWriter):
-        self.writer = writer
-        self.error: str | None = None
+        self.writer = writer       # a LogWriter, or a RingLog in front of one (the writes then fail in its thread)
+        self._error: str | None = None
         self.path = writer.path
+
+    @property
+    def error(self) -> str | None:
+        return self._error if self._error is not None else getattr(self.writer, "error", None)
+
+    @error.setter
+    def error(self, value: str | None) -> None:
+        self._error = value
 
     def __getattr__(self, name):
         fn = getattr(self.writer, name)
@@ -90,6 +98,9 @@ class GuardedLog:
                 return
         except Exception as e:   # noqa: BLE001
             self.error = f"log could not be closed: {one_line(e)}"
+        if hasattr(w, "abandon"):    # RingLog: stops its thread, then the same as below
+            w.abandon()
+            return
         try:
             w.closed = True
             w._file.close()
@@ -143,8 +154,17 @@ class SessionResult:
 class Session:
     def __init__(self, group: DriveGroup, writer: LogWriter, trials: list[Trial], *, progress: bool = False,
                  max_consecutive_lost: int = 10, stop_ramp_s: float = 0.3, enable_timeout_s: float = 1.0,
-                 on_cycle=None, joint_state: bool = False, stale_hold_cycles: int = 2, stale_guard: float = 0.05):
+                 on_cycle=None, joint_state: bool = False, stale_hold_cycles: int = 2, stale_guard: float = 0.05,
+                 threaded_log: bool | None = None):
+        """threaded_log: hand samples to a writer thread through a preallocated ring (`js2io.logring.RingLog`);
+        default: when the group runs in real time."""
         self.g = group
+        if threaded_log is None:
+            threaded_log = bool(getattr(group, "realtime", False))
+        self.threaded_log = threaded_log
+        if not isinstance(writer, GuardedLog) and threaded_log:
+            from .logring import RingLog
+            writer = RingLog(writer, describe=one_line)
         self.w = writer if isinstance(writer, GuardedLog) else GuardedLog(writer)
         self.trials = trials
         self.progress = progress
@@ -390,9 +410,26 @@ class Session:
 
     # ------------------------------------------------------------------ main
     def run(self) -> SessionResult:
+        """Garbage collection is off for the session (set-up objects frozen first; the cycle makes no reference
+        cycles worth a pause); in real time the interpreter also switches threads every 0.5 ms instead of 5 ms, so
+        the cycle thread waits at most that for the GIL (the log writer thread is the other taker)."""
         import gc
+        import sys
         gc.collect()
-        gc.freeze()    # set-up objects out of the collector's way: fewer long gen-2 pauses in the cycle loop
+        gc.freeze()
+        gc_was = gc.isenabled()
+        gc.disable()
+        switch = sys.getswitchinterval()
+        if getattr(self.g, "realtime", False):
+            sys.setswitchinterval(5e-4)
+        try:
+            return self._run()
+        finally:
+            sys.setswitchinterval(switch)
+            if gc_was:
+                gc.enable()
+
+    def _run(self) -> SessionResult:
         t_wall = time.perf_counter()
         res = self.result
         stop_how = "quick_stop"      # anything that escapes below (even BaseException) ends in a quick stop
