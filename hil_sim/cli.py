@@ -61,9 +61,9 @@ def _run(args) -> int:
     from .drives import CanopenSimulator
     from .drives_core import Fault
 
-    from js2io.rt import set_realtime_priority
+    from js2io.rt import realtime_setup
     robot = load_robot(args.robot)
-    set_realtime_priority(args.rt_priority)
+    sched = realtime_setup(args.rt_priority)
     faults = [Fault.parse(f) for f in args.fault]
     q0 = None
     if args.q0:
@@ -93,7 +93,7 @@ def _run(args) -> int:
         signal.signal(s, lambda *a: stop.set())
     sim.start()
     print(f"js2-sim: {robot.name}: {sim.n} CiA 402 drives (nodes {sim.node_ids}) on {where}; "
-          f"{'real-time' if args.realtime else 'lock-step'} physics", flush=True)
+          f"{'real-time' if args.realtime else 'lock-step'} physics; {sched}", flush=True)
     if hub is not None:
         print(f"js2-sim: PORT {hub.port}", flush=True)
         print(f"js2-sim: connect with: js2-acquire -i socketcand -c {args.channel_name} --bus-arg port={hub.port} "

@@ -20,11 +20,10 @@ import canopen
 import numpy as np
 
 from hil_sim.drives_core import Fault, SimDriveSet
+from js2io.pdo import STRUCT_CODE, read_layout
 from js2spec.errors import ConfigError
 
 log = logging.getLogger(__name__)
-
-_FMT = {0x2: "b", 0x3: "h", 0x4: "i", 0x5: "B", 0x6: "H", 0x7: "I"}
 
 
 class CanopenSimulator:
@@ -72,6 +71,9 @@ class CanopenSimulator:
             node.data_store.setdefault(0x6075, {})[0] = struct.pack("<I", int(round(d.rated_current[i] * 1000)))
             self.nodes.append(node)
         self._bus_kwargs = bus_kwargs
+        # which PDOs exist and where they listen: the EDS (the master writes the same layout; the frames are built
+        # from the mapping it wrote)
+        self.layout = read_layout(str(eds))
 
     # ------------------------------------------------------------------ life cycle
     def start(self) -> "CanopenSimulator":
@@ -79,10 +81,10 @@ class CanopenSimulator:
             self.network.connect(**(self._bus_kwargs or {"interface": "virtual", "channel": "js2"}))
         else:
             self.network.connect()    # uses the given bus, starts the notifier
-        self.network.subscribe(0x80, self._on_sync)
+        self.network.subscribe(self.layout.sync_cob, self._on_sync)
         for i, nid in enumerate(self.node_ids):
-            self.network.subscribe(0x200 + nid, partial(self._on_rpdo, i, 0))
-            self.network.subscribe(0x300 + nid, partial(self._on_rpdo, i, 1))
+            for k, p in enumerate(self.layout.rpdos):
+                self.network.subscribe(p.cob_id(nid), partial(self._on_rpdo, i, k))
         self.network.subscribe(0x700 + 0x7F, self._on_master_heartbeat)
         for node in self.nodes:      # power-on: boot-up message, then pre-operational
             node.nmt.send_command(0x81)
@@ -187,17 +189,18 @@ class CanopenSimulator:
                 idx, sub = e >> 16, (e >> 8) & 0xFF
                 obj = od[idx] if sub == 0 and not isinstance(od[idx], (canopen.objectdictionary.ODRecord,
                                                                        canopen.objectdictionary.ODArray)) else od[idx][sub]
-                out.append((idx, sub, _FMT[obj.data_type]))
+                out.append((idx, sub, STRUCT_CODE[obj.data_type]))
             return out
 
-        cob = self._u32(node, 0x1800, 1)
+        fb = self.layout.feedback
+        cob = self._u32(node, fb.comm, 1)
         tpdo = None
         if not cob & 0x80000000:
-            ent = entries(0x1A00)
+            ent = entries(fb.mapping)
             tpdo = (cob & 0x7FF, struct.Struct("<" + "".join(f for _, _, f in ent)), [e[0] for e in ent])
         self._tpdo[i] = tpdo
         rp = []
-        for comm, mp in ((0x1400, 0x1600), (0x1401, 0x1601)):
+        for comm, mp in ((p.comm, p.mapping) for p in self.layout.rpdos):
             cob = self._u32(node, comm, 1)
             if cob & 0x80000000:
                 rp.append(None)

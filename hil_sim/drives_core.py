@@ -17,16 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from js2io import cia402
-from js2io.cia402 import (ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, READY, STATUS_BITS, SWITCH_ON_DISABLED,
-                          SWITCHED_ON)
+from js2io.cia402 import (EMCY_GENERIC, EMCY_HEARTBEAT, EMCY_NAMES, EMCY_OVERCURRENT,  # noqa: F401 - re-exported
+                          EMCY_POSITION_LIMIT, ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, READY, STATUS_BITS,
+                          SWITCH_ON_DISABLED, SWITCHED_ON)
 from js2spec.errors import ConfigError
-
-# EMCY error codes (CiA 301 / 402)
-EMCY_OVERCURRENT = 0x2310
-EMCY_HEARTBEAT = 0x8130
-EMCY_POSITION_LIMIT = 0x8612
-EMCY_GENERIC = 0x1000
-from js2io.cia402 import EMCY_NAMES  # noqa: E402,F401 - re-exported
 
 FAULT_KINDS = ("dead_node", "lost_frames", "drive_fault", "bus_error", "heartbeat_loss")
 

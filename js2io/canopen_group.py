@@ -4,17 +4,18 @@ canopen does NMT, SDO configuration, EMCY decoding and receives heartbeats; the 
 machinery: RPDOs are packed with `struct` and sent as raw frames, TPDOs are raw subscriptions unpacked with `struct`
 (canopen's PdoMap/Variable layers cost more than the whole cycle budget at 500 Hz; see docs/acquisition.md).
 
-PDO layout (written by SDO at every start, never assumed):
+PDO layout: the EDS's default PDO configuration (`js2io.pdo.read_layout`), written by SDO at every start, never
+assumed. With configs/js2/drives.eds:
   RPDO1 0x200+id, sync (type 1): 0x6040 controlword U16, 0x6071 target torque I16 (per-mille of 0x6076)
-  RPDO2 0x300+id, sync:          0x60FF target velocity I32 (increments/s; CSV only)
+  RPDO2 0x300+id, sync:          0x60FF target velocity I32 (increments/s; sent only in CSV)
   TPDO1 0x180+id, every SYNC:    0x6041 statusword U16, 0x6064 position actual I32, 0x6078 current actual I16
+  TPDO2 off
 Heartbeats both ways: the drives produce every heartbeat_ms (0x1017) and consume the master's (0x1016, 3x);
 the master watches theirs (canopen has no consumer timeout, so this class does it).
 """
 from __future__ import annotations
 
 import logging
-import struct
 import threading
 import time
 
@@ -26,14 +27,10 @@ from js2spec.errors import ConfigError, Js2Error
 
 from . import cia402
 from .group import DriveEvent, DriveGroup, RawFeedback, motor_position_limits_counts
+from .pdo import (CONTROLWORD, CURRENT_ACTUAL, POSITION_ACTUAL, STATUSWORD, TARGET_TORQUE, TARGET_VELOCITY,
+                  read_layout)
 
 log = logging.getLogger(__name__)
-
-TPDO1 = struct.Struct("<HiH")    # statusword, position, current (parsed as signed below)
-TPDO1S = struct.Struct("<Hih")
-RPDO1 = struct.Struct("<Hh")
-RPDO2 = struct.Struct("<i")
-SYNC_ID = 0x80
 
 
 class BusError(Js2Error):
@@ -70,7 +67,22 @@ class CanopenDriveGroup(DriveGroup):
         self._paused = False
         self.hb_ms = float(drives.heartbeat_ms or 100.0)
         self.nodes: list[canopen.RemoteNode] = []
-        self._index = {0x180 + nid: i for i, nid in enumerate(self.node_ids)}
+        self.layout = read_layout(self.eds_path)
+        fb = self.layout.feedback
+        self._fb_codec = fb.codec
+        self._fb_size = fb.codec.size
+        self._fb_pos = tuple(fb.objects.index(o) for o in (STATUSWORD, POSITION_ACTUAL, CURRENT_ACTUAL))
+        self._index = {fb.cob_id(nid): i for i, nid in enumerate(self.node_ids)}
+        # per RPDO: (codec, which value goes where: 0 controlword, 1 torque, 2 velocity), messages per drive
+        slot = {CONTROLWORD: 0, TARGET_TORQUE: 1, TARGET_VELOCITY: 2}
+        self._rpdos = []
+        for p in self.layout.rpdos:
+            if any(o not in slot for o in p.objects):
+                raise ConfigError(self.eds_path, None, f"{p.name} maps objects other than 0x6040/0x6071/0x60FF "
+                                  f"({', '.join(f'0x{o:04X}' for o in p.objects)}); the master fills only those")
+            self._rpdos.append((p.codec, tuple(slot[o] for o in p.objects), TARGET_VELOCITY in p.objects,
+                                [can.Message(arbitration_id=p.cob_id(nid), data=bytes(p.codec.size),
+                                             is_extended_id=False) for nid in self.node_ids]))
         self._status = np.zeros(self.n, dtype=np.int64)
         self._counts = np.zeros(self.n, dtype=np.int64)
         self._cur = np.zeros(self.n, dtype=np.int64)
@@ -93,9 +105,7 @@ class CanopenDriveGroup(DriveGroup):
         self._opened = False
         self.warnings: list[str] = []
         self.source_detail = "hardware"
-        self._rpdo_msgs = [can.Message(arbitration_id=0x200 + nid, data=bytes(4), is_extended_id=False)
-                           for nid in self.node_ids]
-        self._sync_msg = can.Message(arbitration_id=SYNC_ID, data=b"", is_extended_id=False)
+        self._sync_msg = can.Message(arbitration_id=self.layout.sync_cob, data=b"", is_extended_id=False)
 
     # ------------------------------------------------------------------ set-up
     def _sdo_write(self, i, index, sub, value):
@@ -179,17 +189,17 @@ class CanopenDriveGroup(DriveGroup):
             if period_ms == int(period_ms):
                 self._optional(i, 0x60C2, 1, int(period_ms))                 # interpolation period = SYNC
                 self._optional(i, 0x60C2, 2, -3)
-            self._map(i, 0x1400, 0x1600, 0x200 + nid, [0x60400010, 0x60710010])
-            self._map(i, 0x1401, 0x1601, 0x300 + nid, [0x60FF0020])
-            self._map(i, 0x1800, 0x1A00, 0x180 + nid, [0x60410010, 0x60640020, 0x60780010])
-            self._sdo_write(i, 0x1801, 1, 0x80000280 + nid)                  # TPDO2 off
+            for p in self.layout.rpdos + self.layout.tpdos:                  # the EDS's layout
+                self._map(i, p.comm, p.mapping, p.cob_id(nid), list(p.entries), trans_type=p.transmission)
+            for comm, cob_base in self.layout.disabled:                      # the PDOs it leaves off
+                self._sdo_write(i, comm, 1, 0x80000000 | (cob_base + nid))
             self._sdo_write(i, 0x6060, None, int(self.modes[i]))
             self._sdo_write(i, 0x1016, 1, (self.master_node_id << 16) | int(3 * self.hb_ms))
             self._sdo_write(i, 0x1017, None, int(self.hb_ms))
             node = self.nodes[i]
             node.nmt.add_heartbeat_callback(lambda state, i=i: self._on_heartbeat(i, state))
             node.emcy.add_callback(lambda err, i=i: self._on_emcy(i, err))
-            net.subscribe(0x180 + nid, self._on_tpdo)
+            net.subscribe(self.layout.feedback.cob_id(nid), self._on_tpdo)
         self.source_detail = "hil_sim:canopen" if all(n.startswith("js2-hil_sim") for n in names) else "hardware"
         self.source = "hil_sim" if self.source_detail.startswith("hil_sim") else "hardware"
         if self.source == "hardware" and not self.realtime:
@@ -274,9 +284,11 @@ class CanopenDriveGroup(DriveGroup):
     # ------------------------------------------------------------------ callbacks (notifier thread)
     def _on_tpdo(self, can_id, data, timestamp):
         i = self._index[can_id]
-        if len(data) < 8:
+        if len(data) < self._fb_size:
             return
-        self._status[i], self._counts[i], self._cur[i] = TPDO1S.unpack_from(data)
+        v = self._fb_codec.unpack_from(data)
+        a, b, c = self._fb_pos
+        self._status[i], self._counts[i], self._cur[i] = v[a], v[b], v[c]
         if not self._got[i]:
             self._got[i] = True
             if self._expect[i]:
@@ -305,21 +317,25 @@ class CanopenDriveGroup(DriveGroup):
             self.network.bus.send(msg)
 
     def _transmit(self, controlword, torque_permille, velocity_counts) -> None:
-        for i in range(self.n):
-            m = self._rpdo_msgs[i]
-            m.data = bytearray(RPDO1.pack(int(controlword[i]), int(torque_permille[i])))
-            self._send(m)
-        if velocity_counts is not None:
-            for i, nid in enumerate(self.node_ids):
-                self._send(can.Message(arbitration_id=0x300 + nid, data=RPDO2.pack(int(velocity_counts[i])),
-                                       is_extended_id=False))
+        cw, tq = controlword.tolist(), torque_permille.tolist()
+        vel = velocity_counts.tolist() if velocity_counts is not None else None
+        for codec, slots, has_velocity, msgs in self._rpdos:
+            if has_velocity and vel is None:
+                continue          # the velocity RPDO goes out only while a drive is in CSV
+            for i in range(self.n):
+                row = (cw[i], tq[i], vel[i] if vel is not None else 0)
+                m = msgs[i]
+                m.data = bytearray(codec.pack(*[row[s] for s in slots]))
+                self._send(m)
 
     def _sync(self) -> RawFeedback:
         self.network.check()          # re-raise what killed the receive thread (bus errors)
         self._got[:] = False
         self._ngot = 0
-        # a drive that missed 3 cycles in a row is not waited for (still read when it answers)
-        self._expect = self._miss < 3
+        # lock-step: a drive that missed 3 cycles in a row is not waited for (still read when it answers). Real time:
+        # every drive is waited for up to the deadline (the time is the period's anyway): not waiting would drop its
+        # late answers before every SYNC and leave its feedback stale for good
+        self._expect = self._miss < 3 if not self.realtime else np.ones(self.n, dtype=bool)
         self._nexpect = int(self._expect.sum())
         self._done.clear()
         if self._nexpect == 0:

@@ -1,7 +1,13 @@
-"""CiA 402 power state machine: statusword decoding and the master's controlword logic (no I/O here)."""
+"""CiA 402 definitions, the one place both sides import: the master (js2io) and the simulated drives (hil_sim).
+
+Statusword masks, controlword commands and mode numbers are canopen's own (`canopen.profiles.p402.State402`,
+`OperationMode`); what canopen does not provide is added here: the master's per-cycle controlword logic (canopen's
+`BaseNode402` walks the state machine by blocking SDO/PDO calls, not one step per SYNC) and the EMCY codes. No I/O.
+"""
 from __future__ import annotations
 
-# Statusword (0x6041) masks/values, as in CiA 402 and canopen's State402.SW_MASK.
+from canopen.profiles.p402 import OperationMode, State402
+
 NOT_READY = "NOT READY TO SWITCH ON"
 SWITCH_ON_DISABLED = "SWITCH ON DISABLED"
 READY = "READY TO SWITCH ON"
@@ -11,31 +17,26 @@ QUICK_STOP = "QUICK STOP ACTIVE"
 FAULT_REACTION = "FAULT REACTION ACTIVE"
 FAULT = "FAULT"
 
-_SW = (
-    (0x4F, 0x00, NOT_READY),
-    (0x4F, 0x40, SWITCH_ON_DISABLED),
-    (0x6F, 0x21, READY),
-    (0x6F, 0x23, SWITCHED_ON),
-    (0x6F, 0x27, ENABLED),
-    (0x6F, 0x07, QUICK_STOP),
-    (0x4F, 0x0F, FAULT_REACTION),
-    (0x4F, 0x08, FAULT),
-)
+# Statusword (0x6041): (mask, value, state); the eight patterns exclude each other, so the order does not matter
+_SW = tuple((mask, value, name) for name, (mask, value) in State402.SW_MASK.items())
+assert {n for _, _, n in _SW} == {NOT_READY, SWITCH_ON_DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP,
+                                   FAULT_REACTION, FAULT}
 
-STATUS_BITS = {ENABLED: 0x27, QUICK_STOP: 0x07, FAULT: 0x08, FAULT_REACTION: 0x0F, SWITCH_ON_DISABLED: 0x40,
-               READY: 0x21, SWITCHED_ON: 0x23, NOT_READY: 0x00}
+STATUS_BITS = {name: value for _, value, name in _SW}    # the state bits a drive reports in each state
 
-# Controlword (0x6040) commands.
-CW_SHUTDOWN = 0x06
-CW_SWITCH_ON = 0x07
-CW_ENABLE = 0x0F
-CW_DISABLE_VOLTAGE = 0x00
-CW_QUICK_STOP = 0x02
-CW_FAULT_RESET = 0x80
+# Controlword (0x6040) commands
+CW_SHUTDOWN = State402.CW_SHUTDOWN
+CW_SWITCH_ON = State402.CW_SWITCH_ON
+CW_ENABLE = State402.CW_OPERATION_ENABLED
+CW_DISABLE_VOLTAGE = State402.CW_DISABLE_VOLTAGE
+CW_QUICK_STOP = State402.CW_QUICK_STOP
+CW_FAULT_RESET = State402.CW_SWITCH_ON_DISABLED     # bit 7, fault reset (canopen names it by its target state)
 
-MODE_CST = 10
-MODE_CSV = 9
-MODE_NAMES = {10: "CST", 9: "CSV", 8: "CSP", 4: "PT", 3: "PV", 1: "PP", 6: "HM"}
+MODE_CST = OperationMode.CYCLIC_SYNCHRONOUS_TORQUE
+MODE_CSV = OperationMode.CYCLIC_SYNCHRONOUS_VELOCITY
+MODE_NAMES = {MODE_CST: "CST", MODE_CSV: "CSV", OperationMode.CYCLIC_SYNCHRONOUS_POSITION: "CSP",
+              OperationMode.PROFILED_TORQUE: "PT", OperationMode.PROFILED_VELOCITY: "PV",
+              OperationMode.PROFILED_POSITION: "PP", OperationMode.HOMING: "HM"}
 
 
 def state_of(statusword: int) -> str:
@@ -77,6 +78,10 @@ def next_controlword(state: str, target: str, last_cw: int) -> int:
 
 
 # EMCY error codes (CiA 301 / 402) that the drives and the simulator use.
+EMCY_GENERIC = 0x1000
+EMCY_OVERCURRENT = 0x2310
+EMCY_HEARTBEAT = 0x8130
+EMCY_POSITION_LIMIT = 0x8612
 EMCY_NAMES = {0x0000: "error reset / no error", 0x1000: "generic error", 0x2310: "continuous over-current",
               0x3210: "DC link over-voltage", 0x4310: "drive over-temperature", 0x8130: "life guard / heartbeat error",
               0x8611: "following error", 0x8612: "software position limit exceeded"}

@@ -1,6 +1,7 @@
 """js2-acquire: run identification trials on an arm through its CANopen drives and write a js2 log.
 
   js2-acquire --trial all -o run.mcap                        # in-process simulator on python-can's virtual bus
+  js2-acquire --trial excitation -o x.mcap --realtime        # simulator in its own process, SYNC on the wall clock
   js2-acquire --trial static -o s.mcap -i socketcan -c can0 -b 1000000 --realtime      # a real arm (SocketCAN)
   js2-acquire --trial velocity -o v.mcap -i socketcand -c js2 --bus-arg port=PORT     # js2-sim in another process
 """
@@ -36,8 +37,12 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--bus-arg", action="append", default=[], metavar="KEY=VALUE",
                    help="extra python-can Bus argument, e.g. --bus-arg port=29536 (repeatable)")
     g.add_argument("--bus-config", action="store_true", help="open the bus from python-can's config file/environment")
-    s = p.add_argument_group("in-process simulator")
-    s.add_argument("--direct", action="store_true", help="step the simulator directly, without CAN (fastest)")
+    s = p.add_argument_group("simulated drives (no bus given)")
+    s.add_argument("--sim", metavar="NAME",
+                   help="the simulated rig, chosen by name from the installed drive groups (entry points "
+                        "'js2.drive_groups'): sim (in this process, python-can's virtual bus; the default), sim-direct "
+                        "(no CAN, fastest), sim-process (js2-sim in its own process; the default with --realtime)")
+    s.add_argument("--direct", action="store_true", help="same as --sim sim-direct")
     s.add_argument("--sim-fault", action="append", default=[], metavar="KIND[:DRIVE][@CYCLE][xCOUNT]",
                    help="inject a fault: dead_node, lost_frames, drive_fault, bus_error, heartbeat_loss; "
                         "e.g. drive_fault:2@3000 (repeatable)")
@@ -46,7 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--joint-state", action="store_true",
                    help="also log /js2/joint_state (joint side, for viewers such as Foxglove)")
     p.add_argument("--rt-priority", type=int, default=0, metavar="N",
-                   help="run the cycle loop with SCHED_FIFO priority N (Linux; root/CAP_SYS_NICE); 0 = off")
+                   help="run the cycle loop with SCHED_FIFO priority N and lock its memory (Linux; root/CAP_SYS_NICE; "
+                        "says so and stops when not permitted); 0 = off")
     return p
 
 
@@ -126,9 +132,9 @@ def _run(args) -> int:
     from .session import Session, open_log
     from .trials import TrialContext, expand_trial_names, load_trials_config, make_trials
 
-    from .rt import set_realtime_priority
+    from .rt import realtime_setup
     robot = load_robot(args.robot)
-    sched = set_realtime_priority(args.rt_priority)
+    sched = realtime_setup(args.rt_priority)
     cfg_path = args.config or robot.trials_path
     if cfg_path is None:
         from .trials import default_trials_path
@@ -136,8 +142,11 @@ def _run(args) -> int:
     cfg = load_trials_config(cfg_path)
     names = expand_trial_names(args.trial)
     use_bus = bool(args.interface or args.channel or args.bus_config or args.bus_arg)
-    if use_bus and (args.direct or args.sim_fault):
-        raise Js2Error("--direct and --sim-fault apply to the in-process simulator only; drop the bus options or them")
+    if use_bus and (args.direct or args.sim_fault or args.sim):
+        raise Js2Error("--sim, --direct and --sim-fault apply to the simulated drives only; drop the bus options or them")
+    if args.direct and args.sim and args.sim != "sim-direct":
+        raise Js2Error(f"--direct and --sim {args.sim} contradict each other; keep one")
+    sim_name = "sim-direct" if args.direct else (args.sim or ("sim-process" if args.realtime else "sim"))
     sim = None
     bus = None
     network = None
@@ -153,31 +162,24 @@ def _run(args) -> int:
     check_output(args.output, args.force)
     faults = _parse_faults(args.sim_fault, trials, cycle_hz)
     try:
-        if args.direct:
-            from hil_sim.direct import DirectDriveGroup
-            group = DirectDriveGroup(robot, cycle_hz=cycle_hz, seed=args.seed, faults=args.sim_fault)
-            where = "in-process simulator, direct (no CAN)"
-        else:
+        if use_bus:
             import canopen
 
             from .canopen_group import CanopenDriveGroup
-            if use_bus:
-                kw = {} if args.bus_config else bus_kwargs(args.interface, args.channel, args.bitrate, args.bus_arg)
-                bus = open_bus(kw)
-                where = f"CAN bus {bus.channel_info}"
-            else:
-                from hil_sim.canopen_inprocess import InProcessCanopen
-                rig = InProcessCanopen(robot, cycle_hz=cycle_hz, seed=args.seed, faults=args.sim_fault,
-                                       realtime=args.realtime).start()
-                sim, network, group = rig, rig.network, rig.group
-                where = "in-process simulator on python-can's virtual bus"
-            if group is None:
-                network = canopen.Network(bus)
-                network.connect()
-                if robot.eds_path is None:
-                    raise Js2Error(f"{robot.folder}: no drives.eds (the drives' object dictionary); add it")
-                group = CanopenDriveGroup(robot.drives, network, robot.eds_path, cycle_hz=cycle_hz,
-                                          realtime=args.realtime)
+            kw = {} if args.bus_config else bus_kwargs(args.interface, args.channel, args.bitrate, args.bus_arg)
+            bus = open_bus(kw)
+            where = f"CAN bus {bus.channel_info}"
+            network = canopen.Network(bus)
+            network.connect()
+            if robot.eds_path is None:
+                raise Js2Error(f"{robot.folder}: no drives.eds (the drives' object dictionary); add it")
+            group = CanopenDriveGroup(robot.drives, network, robot.eds_path, cycle_hz=cycle_hz,
+                                      realtime=args.realtime)
+        else:
+            from .rigs import open_rig
+            sim = open_rig(sim_name, robot, cycle_hz=cycle_hz, seed=args.seed, faults=args.sim_fault,
+                           realtime=args.realtime, rt_priority=args.rt_priority)
+            group, where = sim.group, sim.where
         print(f"js2-acquire: {robot.name}, trials {', '.join(names)} -> {args.output} ({where}, "
               f"{cycle_hz:g} Hz, {'real time' if args.realtime else 'lock-step'}, {sched})", file=sys.stderr)
         group.open()
@@ -206,12 +208,12 @@ def _run(args) -> int:
     finally:
         if group is not None:
             group.close()
-        if sim is None and network is not None:
+        if network is not None:
             try:
                 network.disconnect()
             except Exception:
                 pass
-        elif sim is None and bus is not None:
+        elif bus is not None:
             bus.shutdown()
         if sim is not None:
             sim.close()

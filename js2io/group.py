@@ -4,7 +4,8 @@ One cycle = the master sends the command (RPDOs, applied by the drives at the NE
 collects what the drives sampled at that SYNC (TPDOs). Implementations only move device units (controlword,
 per-mille torque, encoder increments); the conversion to SI happens here, through `js2io.units.Scaling`.
 
-Implementations: `js2io.canopen_group.CanopenDriveGroup` (the real path, any python-can bus) and
+Implementations: `js2io.canopen_group.CanopenDriveGroup` (the real path, any python-can bus) and, chosen by name
+through the `js2.drive_groups` entry points (`js2io.rigs`), simulated ones such as
 `hil_sim.direct.DirectDriveGroup` (steps the simulator's plant directly, no CAN; for fast log generation).
 """
 from __future__ import annotations

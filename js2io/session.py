@@ -8,6 +8,16 @@ leaving the joint envelope -> quick stop; a drive fault / EMCY, a dead node (hea
 `max_consecutive_lost`, a bus error -> `fault` + `abort` events and a safe stop; Ctrl-C / SIGTERM -> torques ramp
 to zero, drives disabled. The log is closed in every case.
 
+Stale feedback (a cycle in which some drive's TPDO did not come back in time): the trial controller is not stepped
+(it never sees a stale reading, so nothing winds up or extrapolates into a command); the master holds the last
+command it sent for at most `stale_hold_cycles` cycles, and only while every joint's last fresh position is farther
+than `stale_guard` (fraction of the envelope span) from the envelope; otherwise, and after that, it sends zero torque
+(zero velocity in CSV). The envelope check then runs on the best estimate of where a stale joint may be: its last
+fresh position moved on at its last fresh velocity for the age of that reading (used to trip, never to command).
+The drives' software limits (0x607D) lie outside the envelope by a margin (`group.motor_position_limits`), so the
+master's quick stop comes first. Stale cycles are counted per drive (summary, `js2_acquire_summary` metadata) and a
+burst that outlasts the hold is logged as a `fault` event.
+
 The stop path depends on nothing that can fail: every log write goes through `GuardedLog` (a failing write - full
 disk, closed file, a bad value - is remembered, later writes are skipped, nothing is raised into the cycle loop),
 the stop runs in a `finally`, each of its phases (ramp / quick stop, disable) is tried on its own, and the summary
@@ -51,9 +61,17 @@ class GuardedLog:
     exception, so neither the trial's abort nor the drives' stop can be skipped by the log."""
 
     def __init__(self, writer: LogWriter):
-        self.writer = writer
-        self.error: str | None = None
+        self.writer = writer       # a LogWriter, or a RingLog in front of one (the writes then fail in its thread)
+        self._error: str | None = None
         self.path = writer.path
+
+    @property
+    def error(self) -> str | None:
+        return self._error if self._error is not None else getattr(self.writer, "error", None)
+
+    @error.setter
+    def error(self, value: str | None) -> None:
+        self._error = value
 
     def __getattr__(self, name):
         fn = getattr(self.writer, name)
@@ -80,6 +98,9 @@ class GuardedLog:
                 return
         except Exception as e:   # noqa: BLE001
             self.error = f"log could not be closed: {one_line(e)}"
+        if hasattr(w, "abandon"):    # RingLog: stops its thread, then the same as below
+            w.abandon()
+            return
         try:
             w.closed = True
             w._file.close()
@@ -95,6 +116,10 @@ class SessionResult:
     wall_time_s: float = 0.0
     lost: list = field(default_factory=list)
     invalid_cycles: int = 0
+    stale: list = field(default_factory=list)          # stale cycles per drive (its TPDO not back in time)
+    longest_stale: list = field(default_factory=list)  # longest run of consecutive stale cycles per drive
+    stale_held: int = 0                                # stale cycles that repeated the last command
+    stale_zeroed: int = 0                              # stale cycles that sent zero torque instead
     trials: list = field(default_factory=list)        # (name, status, summary)
     aborted: bool = False
     reason: str | None = None
@@ -109,7 +134,9 @@ class SessionResult:
     def text(self) -> str:
         lines = [f"log: {self.path}",
                  f"cycles: {self.cycles} ({self.sim_time_s:.1f} s of arm time, {self.wall_time_s:.1f} s wall)",
-                 f"lost TPDOs per drive: {self.lost} ({self.invalid_cycles} cycles with an invalid reading)"]
+                 f"lost TPDOs per drive: {self.lost} ({self.invalid_cycles} cycles with an invalid reading)",
+                 f"stale cycles per drive: {self.stale} (longest run {self.longest_stale}; in trials "
+                 f"{self.stale_held} held the last command, {self.stale_zeroed} sent zero torque)"]
         for name, status, summ in self.trials:
             extra = ", ".join(f"{k} {v}" for k, v in (summ or {}).items())
             lines.append(f"  {name:<12} {status}{': ' + extra if extra else ''}")
@@ -129,8 +156,17 @@ class SessionResult:
 class Session:
     def __init__(self, group: DriveGroup, writer: LogWriter, trials: list[Trial], *, progress: bool = False,
                  max_consecutive_lost: int = 10, stop_ramp_s: float = 0.3, enable_timeout_s: float = 1.0,
-                 on_cycle=None, joint_state: bool = False):
+                 on_cycle=None, joint_state: bool = False, stale_hold_cycles: int = 2, stale_guard: float = 0.05,
+                 threaded_log: bool | None = None):
+        """threaded_log: hand samples to a writer thread through a preallocated ring (`js2io.logring.RingLog`);
+        default: when the group runs in real time."""
         self.g = group
+        if threaded_log is None:
+            threaded_log = bool(getattr(group, "realtime", False))
+        self.threaded_log = threaded_log
+        if not isinstance(writer, GuardedLog) and threaded_log:
+            from .logring import RingLog
+            writer = RingLog(writer, describe=one_line)
         self.w = writer if isinstance(writer, GuardedLog) else GuardedLog(writer)
         self.trials = trials
         self.progress = progress
@@ -142,7 +178,15 @@ class Session:
         self.joint_state = joint_state            # also write /js2/joint_state (joint side, for viewers)
         self._prev_fb = None
         self.n = group.n
-        self.consec_lost = np.zeros(self.n, dtype=int)
+        self.consec_lost = np.zeros(self.n, dtype=int)     # current run of stale cycles per drive
+        self.stale = np.zeros(self.n, dtype=int)
+        self.longest_stale = np.zeros(self.n, dtype=int)
+        self.stale_hold_cycles = int(stale_hold_cycles)
+        self.stale_guard = float(stale_guard)
+        self._q_fresh = None                               # motor rad, last fresh reading per drive
+        self._v_fresh = np.zeros(self.n)                   # motor rad/s between the last two fresh readings
+        self._t_fresh = np.zeros(self.n)                   # s, time of the last fresh reading
+        self._zero_logged = False
         self.result = SessionResult(path=str(writer.path))
         self.max_cmd = np.zeros(self.n)
         self.fb: Feedback | None = None
@@ -180,6 +224,7 @@ class Session:
         fb = self.g.sync()
         self.fb = fb
         self._log_feedback(fb)
+        self._track_fresh(fb)
         if self.joint_state:
             d = self.g.drives
             prev = self._prev_fb
@@ -197,6 +242,58 @@ class Session:
         return fb
 
     # ------------------------------------------------------------------ safety
+    def _track_fresh(self, fb: Feedback) -> None:
+        """Per drive: stale-cycle counts and runs; last fresh position, velocity and time (for the envelope check)."""
+        ok = np.asarray(fb.valid, dtype=bool)
+        self.consec_lost = np.where(ok, 0, self.consec_lost + 1)
+        self.stale += ~ok
+        np.maximum(self.longest_stale, self.consec_lost, out=self.longest_stale)
+        q = fb.motor_position
+        if self._q_fresh is None:
+            if ok.all():
+                self._q_fresh, self._t_fresh[:] = q.copy(), fb.t
+            return
+        if ok.any():
+            gap = np.maximum(fb.t - self._t_fresh, 1e-9)
+            self._v_fresh = np.where(ok, (q - self._q_fresh) / gap, self._v_fresh)
+            self._q_fresh = np.where(ok, q, self._q_fresh)
+            self._t_fresh = np.where(ok, fb.t, self._t_fresh)
+
+    def motor_position_estimate(self, fb: Feedback) -> np.ndarray:
+        """Where each motor may be now: the fresh reading, or for a stale drive its last fresh position moved on at its
+        last fresh velocity for the age of that reading. For the envelope check only, never for a command."""
+        if self._q_fresh is None or fb.valid.all():
+            return fb.motor_position
+        age = np.maximum(fb.t - self._t_fresh, 0.0)
+        return np.where(fb.valid, fb.motor_position, self._q_fresh + self._v_fresh * age)
+
+    def _stale_command(self) -> Command:
+        """The command of a cycle with stale feedback: the last one sent, for at most `stale_hold_cycles` and only
+        with every joint clear of the envelope by `stale_guard` of its span; else zero torque (CSV: zero velocity)."""
+        run = int(self.consec_lost.max())
+        sent = self.g.sent
+        if sent is not None and run <= self.stale_hold_cycles and self._clear_of_envelope():
+            self.result.stale_held += 1
+            return Command(sent.target_torque.copy(), mode=self.g.modes.copy(),
+                           target_velocity=None if sent.target_velocity is None else sent.target_velocity.copy())
+        self.result.stale_zeroed += 1
+        if not self._zero_logged:     # once per burst
+            self._zero_logged = True
+            stale = np.flatnonzero(self.consec_lost)
+            self._event("fault", joint=int(stale[0]) if stale.size else None,
+                        detail=f"stale feedback of drive(s) {stale.tolist()} for {run} cycles: zero torque until "
+                               f"fresh readings return")
+        z = np.zeros(self.n)
+        return Command(z, mode=self.g.modes.copy(),
+                       target_velocity=z.copy() if np.any(self.g.modes == cia402.MODE_CSV) else None)
+
+    def _clear_of_envelope(self) -> bool:
+        if self.qmin is None or self._q_fresh is None:
+            return self.qmin is None
+        qj = self.g.drives.joint_from_motor(self._q_fresh)
+        guard = self.stale_guard * (self.qmax - self.qmin)
+        return bool(np.all((qj > self.qmin + guard) & (qj < self.qmax - guard)))
+
     def _check(self, fb: Feedback) -> None:
         """Raise SessionAbort (after logging `fault` events) if the cycle is not safe to continue."""
         fatal = None
@@ -204,7 +301,6 @@ class Session:
             self._event("fault", joint=ev.joint, detail=ev.detail, value=ev.code)
             if ev.fatal and fatal is None:
                 fatal = ev.detail
-        self.consec_lost = np.where(fb.valid, 0, self.consec_lost + 1)
         bad = np.flatnonzero(self.consec_lost > self.max_consecutive_lost)
         if fatal is None and bad.size:
             i = int(bad[0])
@@ -222,11 +318,14 @@ class Session:
         if self.w.error is not None:
             raise SessionAbort(self.w.error)
         if self.qmin is not None:
-            qj = self.g.drives.joint_from_motor(fb.motor_position)
+            qj = self.g.drives.joint_from_motor(self.motor_position_estimate(fb))
             out = np.flatnonzero((qj < self.qmin) | (qj > self.qmax))
             if out.size:
                 j = int(out[0])
-                raise SessionAbort(f"joint {self.g.drives.joints[j]} at {qj[j]:.3f} rad left the envelope "
+                stale = np.flatnonzero(~np.asarray(fb.valid, dtype=bool))
+                how = (f"predicted at {qj[j]:.3f} rad (feedback of drive(s) {stale.tolist()} stale for "
+                       f"{int(self.consec_lost.max())} cycles)" if stale.size else f"at {qj[j]:.3f} rad")
+                raise SessionAbort(f"joint {self.g.drives.joints[j]} {how} left the envelope "
                                    f"[{self.qmin[j]:g}, {self.qmax[j]:g}] rad: quick stop")
         if self.stop_request:
             raise SessionAbort(f"interrupted ({self.stop_request}): torques ramped to zero, drives disabled")
@@ -333,9 +432,26 @@ class Session:
 
     # ------------------------------------------------------------------ main
     def run(self) -> SessionResult:
+        """Garbage collection is off for the session (set-up objects frozen first; the cycle makes no reference
+        cycles worth a pause); in real time the interpreter also switches threads every 0.5 ms instead of 5 ms, so
+        the cycle thread waits at most that for the GIL (the log writer thread is the other taker)."""
         import gc
+        import sys
         gc.collect()
-        gc.freeze()    # set-up objects out of the collector's way: fewer long gen-2 pauses in the cycle loop
+        gc.freeze()
+        gc_was = gc.isenabled()
+        gc.disable()
+        switch = sys.getswitchinterval()
+        if getattr(self.g, "realtime", False):
+            sys.setswitchinterval(5e-4)
+        try:
+            return self._run()
+        finally:
+            sys.setswitchinterval(switch)
+            if gc_was:
+                gc.enable()
+
+    def _run(self) -> SessionResult:
         t_wall = time.perf_counter()
         res = self.result
         stop_how = "quick_stop"      # anything that escapes below (even BaseException) ends in a quick stop
@@ -360,14 +476,19 @@ class Session:
                     while True:
                         fb = self.fb
                         self._check(fb)
-                        step = trial.step(fb)
-                        for ev in step.events:
-                            ev = dict(ev)
-                            self._event(ev.pop("kind"), **ev)
-                        if step.done:
-                            status = "done"
-                            break
-                        self._send(step.command)
+                        if fb.valid.all():       # the trial only ever sees fresh readings
+                            self._zero_logged = False
+                            step = trial.step(fb)
+                            for ev in step.events:
+                                ev = dict(ev)
+                                self._event(ev.pop("kind"), **ev)
+                            if step.done:
+                                status = "done"
+                                break
+                            command = step.command
+                        else:
+                            command = self._stale_command()
+                        self._send(command)
                         self._sync()
                 finally:
                     res.trials.append((trial.name, status, trial.summary))
@@ -409,11 +530,16 @@ class Session:
         res.cycles = (self.fb.cycle + 1) if self.fb is not None else 0
         res.sim_time_s = self.fb.t if self.fb is not None else 0.0
         res.lost = self.g.lost.tolist()
+        res.stale = self.stale.tolist()
+        res.longest_stale = self.longest_stale.tolist()
         res.max_abs_command = [round(float(x), 5) for x in self.max_cmd]
         res.final_states = self._final_states()
         res.wall_time_s = time.perf_counter() - t_wall
         self.w.metadata("js2_acquire_summary", {
             "cycles": res.cycles, "lost_tpdo_per_drive": res.lost, "invalid_cycles": res.invalid_cycles,
+            "stale_cycles_per_drive": ",".join(map(str, res.stale)),
+            "longest_stale_run_per_drive": ",".join(map(str, res.longest_stale)),
+            "stale_commands_held": res.stale_held, "stale_commands_zero": res.stale_zeroed,
             "aborted": res.aborted, "reason": res.reason or "",
             "drives_disabled_confirmed": ",".join(str(bool(c)).lower() for c in self.confirmed),
             "warnings": " | ".join(res.warnings),

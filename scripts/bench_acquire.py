@@ -1,12 +1,16 @@
 #!/usr/bin/env python3
 """Benchmark the acquisition cycle against the simulated drives, in real time.
 
-For each transport it runs the full cycle (SYNC, 6 RPDOs, 6 TPDOs, CiA 402 master logic, a trial controller, the MCAP
-log) paced by the wall clock for --seconds, and prints the achieved cycle rate, missed cycles (SYNC sent more than one
-period late, or a drive's TPDO not back before the next SYNC), SYNC period jitter p50/p99, beside the highest rate the
-CAN bus itself allows for this PDO layout at 1 Mbit/s. A lock-step run (no pacing) gives the CPU ceiling.
+For each transport -- `virtual` (master and simulated drives in one process) and `socketcand` (js2-sim in its own
+process, as `js2-acquire --realtime` runs it) -- it runs the full cycle (SYNC, 6 RPDOs, 6 TPDOs, CiA 402 master
+logic, a trial controller, the MCAP log, the session's default safety settings) paced by the wall clock for --seconds,
+optionally beside --load N CPU-bound processes, and prints: missed cycles (SYNC deadlines overrun by more than a period,
+skipped), stale cycles (some drive's TPDO not back before the deadline), SYNC period jitter p50/p99/max, and whether
+the run completed or ABORTED (then the exit code is 1), beside the highest rate the CAN bus allows for the EDS's PDO
+layout at 1 Mbit/s. `--lockstep` adds a run without pacing (the CPU ceiling).
 
   .venv/bin/python scripts/bench_acquire.py                      # 60 s per run, both transports
+  .venv/bin/python scripts/bench_acquire.py --load 2 --rt-priority 50   # two CPU-bound processes beside it
   .venv/bin/python scripts/bench_acquire.py --seconds 10 --transport virtual --rate 500
   .venv/bin/python scripts/bench_acquire.py --profile            # where the main thread's time goes (lock-step)
 """
@@ -35,9 +39,14 @@ def frame_bits(n_bytes: int, worst: bool = True) -> int:
     return base + ((33 + 8 * n_bytes) // 4 if worst else 0)
 
 
-def bus_limit_hz(n_drives=6, rpdo=4, tpdo=8, bitrate=1_000_000, worst=True) -> tuple[float, int]:
-    bits = frame_bits(0, worst) + n_drives * (frame_bits(rpdo, worst) + frame_bits(tpdo, worst))
-    return bitrate / bits, bits
+def bus_limit_hz(robot, bitrate=1_000_000, worst=True) -> tuple[float, int, tuple[int, int]]:
+    """SYNC + per drive the RPDO sent every cycle (controlword + torque) and the feedback TPDO, sized from the EDS."""
+    from js2io.pdo import CONTROLWORD, read_layout
+    lay = read_layout(robot.eds_path)
+    rpdo, tpdo = lay.rpdo_with(CONTROLWORD).codec.size, lay.feedback.codec.size
+    n = robot.drives.n
+    bits = frame_bits(0, worst) + n * (frame_bits(rpdo, worst) + frame_bits(tpdo, worst))
+    return bitrate / bits, bits, (rpdo, tpdo)
 
 
 def make_trial(robot, seconds, cycle_hz):
@@ -48,24 +57,27 @@ def make_trial(robot, seconds, cycle_hz):
     return FourierTrial(TrialContext(robot.drives, 1.0 / cycle_hz, cfg))
 
 
-def run(group_factory, robot, seconds, cycle_hz, realtime):
+def run(make_rig, robot, seconds, cycle_hz):
+    """One session (the master's default safety settings, as js2-acquire runs it) on a fresh rig."""
     from js2io.session import Session, open_log
     with tempfile.TemporaryDirectory() as d:
-        group, closer = group_factory()
+        rig = make_rig()
         try:
+            group = rig.group
             group.keep_sync_times = True
             group.open()
             w = open_log(Path(d) / "bench.mcap", robot, group)
             trial = make_trial(robot, seconds, cycle_hz)
-            s = Session(group, w, [trial], max_consecutive_lost=10 ** 9)
+            s = Session(group, w, [trial])
             t0 = time.perf_counter()
             res = s.run()
             wall = time.perf_counter() - t0
         finally:
-            closer()
+            rig.close()
     st = np.asarray(group.sync_times)
-    out = {"cycles": res.cycles, "wall": wall, "rate": res.cycles / wall, "invalid": res.invalid_cycles,
-           "missed_sync": getattr(group, "missed", 0), "aborted": res.reason}
+    out = {"cycles": res.cycles, "wall": wall, "rate": res.cycles / wall, "stale": res.invalid_cycles,
+           "stale_per_drive": res.stale, "missed": getattr(group, "missed", 0), "aborted": res.aborted,
+           "reason": res.reason, "sim": getattr(rig, "summary", lambda: "")()}
     if len(st) > 10:
         per = np.diff(st)
         jit = np.abs(per - 1.0 / cycle_hz) * 1e6
@@ -131,52 +143,47 @@ def component_costs(robot, cycle_hz, n=3000) -> list[tuple[str, float]]:
     return [(k, v * 1e6) for k, v in out]
 
 
-def virtual_factory(robot, cycle_hz, realtime):
+def virtual_rig(robot, cycle_hz, realtime, faults):
+    """Master and simulated drives in one process on python-can's virtual bus (physics one period per SYNC)."""
     def f():
         from hil_sim.canopen_inprocess import InProcessCanopen
-        rig = InProcessCanopen(robot, cycle_hz=cycle_hz, realtime=realtime, sim_realtime=False,
-                               lockstep_timeout_s=0.25).start()
-        return rig.group, rig.close
+        return InProcessCanopen(robot, cycle_hz=cycle_hz, realtime=realtime, sim_realtime=False, faults=faults,
+                                lockstep_timeout_s=0.25).start()
     return f
 
 
 RT_PRIO = 0
 
 
-def socketcand_factory(robot, cycle_hz, realtime):
+def socketcand_rig(robot, cycle_hz, realtime, faults):
+    """js2-sim in its own process (its own interpreter), the master here over socketcand: as js2-acquire --realtime."""
     def f():
-        import canopen
-        from js2io.bus import open_bus
-        from js2io.canopen_group import CanopenDriveGroup
-        sim = subprocess.Popen([sys.executable, "-m", "hil_sim.cli", "--port", "0", "--cycle-hz", str(cycle_hz),
-                                "--rt-priority", str(RT_PRIO)],
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT)
-        port = None
-        for _ in range(20):
-            line = sim.stdout.readline()
-            m = re.search(r"PORT (\d+)", line)
-            if m:
-                port = int(m.group(1))
-                break
-        if port is None:
-            sim.kill()
-            raise RuntimeError("js2-sim did not start")
-        bus = open_bus({"interface": "socketcand", "channel": "js2", "host": "127.0.0.1", "port": port,
-                        "tcp_tune": True})
-        net = canopen.Network(bus)
-        net.connect()
-        g = CanopenDriveGroup(robot.drives, net, robot.eds_path, cycle_hz=cycle_hz, realtime=realtime)
-
-        def close():
-            g.close()
-            net.disconnect()
-            sim.send_signal(signal.SIGTERM)
-            try:
-                print("    " + sim.communicate(timeout=10)[0].strip().splitlines()[-1])
-            except Exception:
-                sim.kill()
-        return g, close
+        from hil_sim.rigs import ProcessRig
+        return ProcessRig(robot, cycle_hz=cycle_hz, realtime=realtime, faults=faults, rt_priority=RT_PRIO).start()
     return f
+
+
+def start_load(n: int) -> list:
+    """n CPU-bound background processes at normal priority (what else runs on a cell's PC)."""
+    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+
+
+def stop_load(procs) -> None:
+    for p in procs:
+        p.kill()
+    for p in procs:
+        p.wait()
+
+
+def fmt_run(tr, r, rate, seconds, lim) -> str:
+    n_exp = max(1, r["cycles"] + r["missed"])
+    j = [r.get(k, float("nan")) for k in ("jitter_p50", "jitter_p99", "jitter_max")]
+    head = (f"[{tr}] real time at {rate:g} Hz for {seconds:g} s: achieved {r['rate']:.1f} Hz "
+            f"({100 * r['rate'] / lim:.0f} % of the bus limit), cycles {r['cycles']}, "
+            f"missed {r['missed']} ({100 * r['missed'] / n_exp:.2f} %), "
+            f"stale {r['stale']} ({100 * r['stale'] / max(1, r['cycles']):.2f} %; per drive {r['stale_per_drive']}), "
+            f"SYNC jitter p50 {j[0]:.0f} us, p99 {j[1]:.0f} us, max {j[2]:.0f} us")
+    return head + (f"; ABORTED: {r['reason']}" if r["aborted"] else "; completed")
 
 
 def main() -> int:
@@ -184,29 +191,38 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=60.0, help="length of each real-time run (default 60)")
     ap.add_argument("--rate", type=float, help="SYNC rate (default: 90 %% of the 1 Mbit/s bus limit)")
     ap.add_argument("--transport", choices=["virtual", "socketcand", "both"], default="both")
+    ap.add_argument("--load", type=int, default=0, metavar="N",
+                    help="N CPU-bound background processes during the measurement (default 0)")
+    ap.add_argument("--lockstep", action="store_true", help="also measure the lock-step CPU ceiling (10 s each)")
+    ap.add_argument("--fault", action="append", default=[], metavar="KIND[:DRIVE][@CYCLE][xCOUNT]",
+                    help="inject a simulator fault (e.g. drive_fault:2@300) -- the run aborts, the exit code says so")
     ap.add_argument("--profile", action="store_true", help="cProfile the main thread in a lock-step run")
     ap.add_argument("--rt-priority", type=int, default=0, metavar="N",
-                    help="SCHED_FIFO priority for master and simulator (Linux, root/CAP_SYS_NICE); 0 = off")
+                    help="SCHED_FIFO priority for master and simulator, memory locked (Linux, root/CAP_SYS_NICE); 0 = off")
     args = ap.parse_args()
     global RT_PRIO
     RT_PRIO = args.rt_priority
-    from js2io.rt import set_realtime_priority
-    sched = set_realtime_priority(args.rt_priority)
+    from js2io.rt import realtime_setup
+    from js2spec.errors import Js2Error
+    try:
+        sched = realtime_setup(args.rt_priority)
+    except Js2Error as e:
+        print(f"bench_acquire: error: {e}", file=sys.stderr)
+        return 2
     import logging
     logging.basicConfig(level=logging.ERROR)
     from js2io.bus import quiet_socketcand
     from js2spec.robot import load_robot
     quiet_socketcand()
     robot = load_robot("js2")
-    lim, bits = bus_limit_hz()
-    lim_typ, bits_typ = bus_limit_hz(worst=False)
+    lim, bits, (rb, tb) = bus_limit_hz(robot)
+    lim_typ, bits_typ, _ = bus_limit_hz(robot, worst=False)
     rate = args.rate or round(0.9 * lim)
-    print(f"CAN bus limit, SYNC + 6 x RPDO(4 B) + 6 x TPDO(8 B) at 1 Mbit/s: {bits} bits/cycle worst-case stuffing "
-          f"-> {lim:.0f} Hz ({bits_typ} bits without stuffing -> {lim_typ:.0f} Hz); 90 % = {0.9 * lim:.0f} Hz")
-    print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} (other work on it slows us down); "
-          f"python {sys.version.split()[0]}; {sched}")
+    print(f"CAN bus limit, SYNC + 6 x RPDO({rb} B) + 6 x TPDO({tb} B) (the EDS's layout) at 1 Mbit/s: {bits} bits/cycle "
+          f"worst-case stuffing -> {lim:.0f} Hz ({bits_typ} bits without stuffing -> {lim_typ:.0f} Hz); "
+          f"90 % = {0.9 * lim:.0f} Hz")
     transports = ["virtual", "socketcand"] if args.transport == "both" else [args.transport]
-    fac = {"virtual": virtual_factory, "socketcand": socketcand_factory}
+    fac = {"virtual": virtual_rig, "socketcand": socketcand_rig}
     if args.profile:
         costs = component_costs(robot, rate)
         print("CPU per cycle, each piece alone (us):")
@@ -218,23 +234,35 @@ def main() -> int:
         import pstats
         pr = cProfile.Profile()
         pr.enable()
-        r = run(fac[transports[0]](robot, rate, False), robot, min(args.seconds, 10), rate, False)
+        r = run(fac[transports[0]](robot, rate, False, args.fault), robot, min(args.seconds, 10), rate)
         pr.disable()
         print(f"lock-step {transports[0]}: {r['rate']:.0f} cycles/s")
         pstats.Stats(pr).sort_stats("tottime").print_stats(18)
         return 0
-    for tr in transports:
-        r = run(fac[tr](robot, rate, False), robot, min(args.seconds, 10), rate, False)
-        print(f"[{tr}] lock-step (CPU ceiling, no pacing): {r['cycles']} cycles in {r['wall']:.1f} s = "
-              f"{r['cycles'] / r['wall']:.0f} cycles/s")
-        r = run(fac[tr](robot, rate, True), robot, args.seconds, rate, True)
-        missed = r["missed_sync"] + r["invalid"]
-        print(f"[{tr}] real time at {rate:g} Hz for {args.seconds:g} s: achieved {r['rate']:.1f} Hz "
-              f"({100 * r['rate'] / lim:.0f} % of the bus limit), cycles {r['cycles']}, missed {missed} "
-              f"(late SYNC {r['missed_sync']}, incomplete TPDO sets {r['invalid']}), "
-              f"SYNC jitter p50 {r.get('jitter_p50', float('nan')):.0f} us, p99 {r.get('jitter_p99', float('nan')):.0f}"
-              f" us, max {r.get('jitter_max', float('nan')):.0f} us"
-              + (f"; ABORTED: {r['aborted']}" if r["aborted"] else ""))
+    load = start_load(args.load)
+    aborted = []
+    try:
+        time.sleep(1.0 if load else 0.0)     # let the load reach the scheduler before measuring
+        print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} (1 min; includes other work on "
+              f"it), --load {args.load} (background CPU-bound processes); python {sys.version.split()[0]}; {sched}")
+        for tr in transports:
+            if args.lockstep:
+                r = run(fac[tr](robot, rate, False, args.fault), robot, min(args.seconds, 10), rate)
+                print(f"[{tr}] lock-step (CPU ceiling, no pacing): {r['cycles']} cycles in {r['wall']:.1f} s = "
+                      f"{r['cycles'] / r['wall']:.0f} cycles/s")
+            r = run(fac[tr](robot, rate, True, args.fault), robot, args.seconds, rate)
+            print(fmt_run(tr, r, rate, args.seconds, lim), flush=True)
+            if r["sim"]:
+                print(f"    {r['sim']}")
+            if r["aborted"]:
+                aborted.append(tr)
+        print(f"load average at the end: {os.getloadavg()[0]:.1f}")
+    finally:
+        stop_load(load)
+    if aborted:
+        print(f"bench_acquire: {len(aborted)} run(s) ABORTED ({', '.join(aborted)}): the figures above are not a "
+              f"completed measurement", file=sys.stderr)
+        return 1
     return 0
 
 
