@@ -42,7 +42,7 @@ def model_dict(ident) -> dict:
         "filters": {"velocity_cutoff_hz": ident.options.filters.fc_velocity_hz,
                     "acceleration_cutoff_hz": ident.options.filters.fc_acceleration_hz,
                     "order": ident.options.filters.order, "zero_phase": True,
-                    "edge_trim_s": ident.options.filters.trim},
+                    "edge_trim_s": ident.options.filters.trim, "reason": ident.options.filters.reason},
         "friction": {
             "static": _l(ident.friction_static), "static_std": _l(ident.friction_static_std),
             "coulomb": _l(ident.friction_coulomb), "coulomb_std": _l(ident.friction_coulomb_std),
@@ -103,6 +103,20 @@ def model_dict(ident) -> dict:
         d["links_note"] = ("physically consistent standard parameters fitted to the base parameters (log-Cholesky); "
                            "inertia_com = [ixx, ixy, ixz, iyy, iyz, izz] about the centre of mass in the link frame")
         d["validation"]["rms_physical"] = _l(ident.validation["physical"]["rms"])
+        cv = getattr(ident.physical, "prior_weight_cv_", None)
+        d["links_prior_weight"] = float(ident.physical.prior_weight)
+        if cv is not None:
+            d["links_prior_weight_cv"] = {"weights": cv["weights"], "held_out_relative_error": cv["rel_error"],
+                                          "folds_fit_rows": [list(f) for f in cv["folds"]]}
+    val = ident.validation
+    d["validation"]["model"] = val["exported"]
+    d["validation"]["relative_error"] = _l(val["rel"])
+    d["validation"]["relative_error_overall"] = float(val["rel_overall"])
+    if "baseline" in val:
+        b = val["baseline"]
+        d["validation"]["baseline"] = {"description": b["description"], "rms": _l(b["rms"]), "nrms": _l(b["nrms"]),
+                                       "relative_error": _l(b["rel"]), "relative_error_overall": float(b["rel_overall"]),
+                                       "ratio_js2_to_baseline": float(val["rel_overall"] / b["rel_overall"])}
     d["urdf"] = "robot_identified.urdf"
     return d
 
