@@ -16,6 +16,7 @@ import numpy as np
 import yaml
 
 from .consistency import is_physical
+from .plausibility import plausibility_checks
 
 
 def _l(x) -> list:
@@ -226,8 +227,10 @@ def verdict(ident, thresholds: dict | None = None) -> dict:
     checks.append({"check": "friction_identified_and_non_negative", "value": bool(np.all(np.isfinite(fr)) and
                                                                                    np.all(fr >= 0)),
                    "threshold": True, "pass": bool(np.all(np.isfinite(fr)) and np.all(fr >= 0))})
+    checks += plausibility_checks(ident)
     ok = all(c["pass"] for c in checks)
-    return {"pass": ok, "method": ident.chosen, "thresholds": th, "checks": checks,
+    reasons = [c["reason"] for c in checks if not c["pass"] and c.get("reason")]
+    return {"pass": ok, "reasons": reasons, "method": ident.chosen, "thresholds": th, "checks": checks,
             "truncated_input": any(i["truncated"] for i in ident.inputs), "notes": list(ident.notes)}
 
 

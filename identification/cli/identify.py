@@ -170,6 +170,8 @@ def summary(ident, v, out, report: bool = True) -> str:
         lines.append(f"note: {n}")
     files = "model.yaml, robot_identified.urdf, " + ("report.html, " if report else "") + "verdict.json"
     lines.append(f"verdict: {'PASS' if v['pass'] else 'FAIL'}   ->  {out}/ {files}")
+    for r in v.get("reasons", []):
+        lines.append(f"  FAIL: {r}")
     return "\n".join(lines)
 
 
