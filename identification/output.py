@@ -50,6 +50,7 @@ def model_dict(ident) -> dict:
             "viscous": _l(ident.friction_viscous), "viscous_std": _l(ident.friction_viscous_std),
         },
         "motor_inertia": _l(ja),
+        "torque_offset": _l(_offsets(ident)),
         "motor_inertia_std": _l(ja_sd),
         "motor_inertia_separately_identified": [bool(a) for a in alone],
         "base_parameters": {"names": list(bp.names), "values": _l(mr.beta), "std": _l(mr.std),
@@ -62,6 +63,12 @@ def model_dict(ident) -> dict:
                        "data": ident.validation["data"], "samples": ident.validation["samples"],
                        "nrms_definition": "rms / (max - min) of the measured (filtered) torque on the validation data"},
     }
+    fsq = ident.friction_sqrt_viscous
+    if fsq is not None and np.isfinite(fsq).any():
+        d["friction"]["sqrt_viscous"] = _l(fsq)
+        d["friction"]["sqrt_viscous_note"] = ("extra friction Bs sgn(v) sqrt|v| per axis (N m (s/rad)^0.5, same side "
+                                              "as viscous), kept because it lowered the held-out error in "
+                                              "cross-validation on the fit data")
     if ident.velocity is not None:
         pdirs = {}
         for m, ax in ident.velocity.axes_.items():
@@ -120,6 +127,21 @@ def model_dict(ident) -> dict:
                                        "ratio_js2_to_baseline": float(val["rel_overall"] / b["rel_overall"])}
     d["urdf"] = "robot_identified.urdf"
     return d
+
+
+def _offsets(ident) -> np.ndarray:
+    """Constant torque offset per axis of the exported model (0 when offsets are not modelled)."""
+    out = np.zeros(ident.arm.n)
+    names = ident.bp.std_names
+    for k in range(ident.arm.n):
+        nm = f"off_{k + 1}"
+        if nm in names:
+            if ident.physical is not None:
+                out[k] = ident.physical.pi_[names.index(nm)]
+            else:
+                i = ident.bp.index_of(nm)
+                out[k] = ident.model.beta[i] if i is not None else 0.0
+    return out
 
 
 def _inertia_com(p10):

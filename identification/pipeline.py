@@ -45,8 +45,10 @@ class IdentifyOptions:
                                              # present, else 'excitation', else every sample ('all')
     validation_trials: tuple = ("validation",)
     holdout: float = 0.25                    # tail fraction held out when no validation data exists
-    offsets: bool = True                     # constant torque offset per axis (off_k): sensor/current bias; on
-                                             # real arms it is what generalises (KUKA LWR4+ held-out error halved)
+    sqrt_viscous: bool | None = None         # Bs sgn(v) sqrt|v| friction per axis; None: tried by the simultaneous
+                                             # method, kept if 3-fold CV on the fit data prefers it
+    offsets: bool | None = None              # constant torque offset per axis (off_k): sensor/current bias; None:
+                                             # tried by the simultaneous method, kept if CV on the fit data prefers
     v_min_fraction: float = 0.03             # rows with |motor speed| below this fraction of the axis's p99 speed
                                              # are left out of the dynamic fit (stiction zone, eq. 1 has sgn only)
     fig3: tuple = ("J_4z", "B_4", "fc_4")    # parameters whose RLS convergence is plotted (Fig. 3)
@@ -96,6 +98,7 @@ class Identification:
     fit_data: dict = field(default_factory=dict)
     val_data: dict = field(default_factory=dict)
     static_per_direction: dict | None = None   # motor -> {"+": f_s+, "-": f_s-, "+_std", "-_std"}
+    friction_sqrt_viscous: np.ndarray | None = None   # Bs per axis (NaN: not in the model)
 
     @property
     def model(self) -> MethodResult:
@@ -181,7 +184,7 @@ def _span_index(sig, t0, t1):
     return np.flatnonzero(sig.mask_between(t0, t1))
 
 
-def _regressor_rows(arm, bp, sig, idx, offsets, progress=None):
+def _regressor_rows(arm, bp, sig, idx, offsets, progress=None, sqrt_viscous=False):
     """Filtered base regressor (len(idx), n, r) and filtered torque at sample indices ``idx`` of ``sig``.
 
     The regressor is built from the 50 Hz signals (q, dq, d/dt dq) over the whole contiguous stretches that contain
@@ -208,6 +211,7 @@ def _regressor_rows(arm, bp, sig, idx, offsets, progress=None):
         for c0 in (progress(chunks) if progress is not None else chunks):
             c1 = min(c0 + step, hi - lo)
             Wb[c0:c1] = bp.project(build_regressor(arm, q[c0:c1], dq[c0:c1], ddq[c0:c1], offsets=offsets,
+                                                   sqrt_viscous=sqrt_viscous,
                                                    velocity_for_sign=None))
         # the torque's filter on every column (parallel filtering), a block of columns at a time (memory)
         flat = Wb.reshape(len(Wb), -1)
@@ -250,13 +254,14 @@ def resolve_filters(logs, given: sg.FilterSettings | None) -> sg.FilterSettings:
     return replace(given, fc_velocity_hz=ch.fc_velocity_hz, fc_acceleration_hz=ch.fc_acceleration_hz, reason=ch.reason)
 
 
-def identify(paths, options: IdentifyOptions | None = None) -> Identification:
+def identify(paths, options: IdentifyOptions | None = None, _notes=()) -> Identification:
     opt = options or IdentifyOptions()
     paths = [p if hasattr(p, "feedback") else Path(p) for p in paths]
     if not paths:
         raise IdentificationError("no log given")
     notes: list[str] = []
     logs = load_logs(paths)
+    post_notes = list(_notes)
     check_same_arm(logs)
     arm = _arm_from_log(logs[0])
     n = arm.n
@@ -294,9 +299,6 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
             spans.setdefault(sp.name, []).append(sp)
         # "all": every sample of every log (logs without trial events; --fit-trials all)
         spans.setdefault("all", []).append(TrialSpan("all", float(sig.t[0]), float(sig.t[-1]), i))
-    bp = base_parameters(arm, offsets=opt.offsets)
-    groups = column_groups(arm, opt.offsets)
-    fmask = friction_mask(bp, arm, opt.offsets)
     # 3. sequential part
     static = velocity = None
     fs_ = np.full(n, np.nan)
@@ -344,6 +346,14 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
         if pick != "acceleration":
             notes.append(f"fit data: the {pick!r} trial" if pick != "all" else
                          "fit data: every sample (no 'acceleration' or 'excitation' trial in the input)")
+    # the square-root viscous term: tried by the simultaneous method, kept when cross-validation on the fit data says
+    sqv = opt.sqrt_viscous if opt.sqrt_viscous is not None else opt.method == "simultaneous"
+    tried = {"sqrt_viscous": opt.sqrt_viscous is None and sqv,
+             "offsets": opt.offsets is None and opt.method == "simultaneous"}
+    opt = replace(opt, offsets=bool(opt.offsets) if opt.offsets is not None else opt.method == "simultaneous")
+    bp = base_parameters(arm, offsets=opt.offsets, sqrt_viscous=sqv)
+    groups = column_groups(arm, opt.offsets, sqv)
+    fmask = friction_mask(bp, arm, opt.offsets, sqv)
     if opt.method == "mixed":
         missing = [k + 1 for k in range(n) if not (np.isfinite(fc_[k]) and np.isfinite(fv_[k]))]
         if "velocity" not in spans:
@@ -369,7 +379,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
         for sp in spans[name]:
             sig = sigs[sp.log_index]
             idx = _span_index(sig, sp.t0, sp.t1)
-            W, y, v = _regressor_rows(arm, bp, sig, idx, opt.offsets, _progress(prog, f"regressor {name}"))
+            W, y, v = _regressor_rows(arm, bp, sig, idx, opt.offsets, _progress(prog, f"regressor {name}"), sqv)
             fitW.append(W), fitY.append(y), fitV.append(v)
             fit_where.append((sig, idx))
     W = np.concatenate(fitW)
@@ -381,7 +391,8 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
         for sp in spans[name]:
             sig = sigs[sp.log_index]
             idx = _span_index(sig, sp.t0, sp.t1)
-            val_parts.append(_regressor_rows(arm, bp, sig, idx, opt.offsets) + (f"{logs[sp.log_index].path}:{name}",))
+            val_parts.append(_regressor_rows(arm, bp, sig, idx, opt.offsets, None, sqv)
+                             + (f"{logs[sp.log_index].path}:{name}",))
             val_where.append((sig, idx))
     for vp in opt.validate_paths:
         vlog = read_log(vp)
@@ -394,7 +405,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
                        "truncated": bool(vlog.truncated), "trials": vlog.trials(), "role": "validation"})
         for s in chosen:
             idx = _span_index(vsig, s.t0, s.t1)
-            val_parts.append(_regressor_rows(arm, bp, vsig, idx, opt.offsets) + (f"{vlog.path}:{s.name}",))
+            val_parts.append(_regressor_rows(arm, bp, vsig, idx, opt.offsets, None, sqv) + (f"{vlog.path}:{s.name}",))
             val_where.append((vsig, idx))
     if not val_parts:
         k = int(round(len(W) * (1 - opt.holdout)))
@@ -417,6 +428,16 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
     if len(W) < 2 * bp.n:
         raise IdentificationError(f"{logs[0].path}: only {len(W)} usable samples in the fit trial(s)")
     wts = _row_weights(V, opt.v_min_fraction)
+    decided, retry_notes = {}, []
+    for term, prefix, label in (("offsets", "off_", "constant torque offsets"),
+                                ("sqrt_viscous", "Bs_", "square-root viscous friction")):
+        if tried[term]:
+            keep, cv_txt = _term_cross_validation(W, Y, wts, bp, prefix)
+            decided[term] = keep
+            (notes if keep else retry_notes).append(f"{label} {'kept' if keep else 'left out'}: {cv_txt}")
+    if retry_notes:
+        return identify(paths, replace(options or IdentifyOptions(), **decided),
+                        _notes=[nt for nt in notes if nt.startswith(("constant torque", "square-root"))] + retry_notes)
     cond = condition_number(W)
     cond_raw = condition_number(W, normalise=False)
     # 5. estimators
@@ -482,6 +503,12 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
             j = bp.std_names.index(lead)
             if lead.startswith("off_"):
                 continue
+            if lead.startswith("Bs_") and chosen == "mixed":
+                fixed_std[j] = 0.0
+                continue
+            if lead.startswith("Bs_"):
+                nonneg.append(j)
+                continue
             if chosen == "mixed":
                 fixed_std[j] = mr.beta[i]
             else:
@@ -503,7 +530,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
     # f_s+ = tau+ - G and f_s- = G - tau-; eq. 3 alone gives only their mean
     static_dir = None
     if static is not None and static.gravity_:
-        static_dir = static_per_direction(arm, bp, methods[chosen].beta, static, opt.offsets)
+        static_dir = static_per_direction(arm, bp, methods[chosen].beta, static, opt.offsets, sqv)
     # 7. validation, beside the textbook baseline fitted on the same samples
     baseline = textbook_baseline(W, Y, bp)
     validation = validate(methods, chosen, val_parts, phys, bp, baseline)
@@ -521,13 +548,41 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
             elif kind == "fc":
                 fc_[k], fc_sd[k] = val, methods[chosen].std[i]
         friction_out = (fs_, fs_sd, fc_, fc_sd, fv_, fv_sd)
-    return Identification(options=opt, arm=arm, bp=bp, logs=logs, inputs=inputs, notes=notes, static=static,
+    fsq = np.full(n, np.nan)
+    for i in fr:
+        if bp.lead(i).startswith("Bs_"):
+            k = int(bp.lead(i).split("_")[1]) - 1
+            fsq[k] = methods[chosen].beta[i] if phys is None else phys.pi_[bp.std_names.index(bp.lead(i))]
+    return Identification(options=opt, arm=arm, bp=bp, logs=logs, inputs=inputs, notes=notes + post_notes,
+                          static=static, friction_sqrt_viscous=fsq,
                           velocity=velocity, friction_static=friction_out[0], friction_static_std=friction_out[1],
                           friction_coulomb=friction_out[2], friction_coulomb_std=friction_out[3],
                           friction_viscous=friction_out[4], friction_viscous_std=friction_out[5], methods=methods,
                           chosen=chosen, condition_number=cond, condition_number_raw=cond_raw, n_fit_samples=len(W),
                           validation=validation, physical=phys, fit_data=fit_data,
                           val_data={"parts": val_parts, "where": val_where}, static_per_direction=static_dir)
+
+
+def _term_cross_validation(W, Y, wts, bp: BaseParameters, prefix: str, folds: int = 3) -> tuple[bool, str]:
+    """Does a group of columns (leads starting with ``prefix``) lower the held-out torque error of a weighted least
+    squares fit in ``folds`` contiguous blocks of the *fit* data? Returns (keep, one-line account)."""
+    N = len(W)
+    edges = np.linspace(0, N, folds + 1).astype(int)
+    with_ = np.arange(bp.n)
+    without = np.array([i for i in range(bp.n) if not bp.lead(i).startswith(prefix)], int)
+    err = {}
+    for label, cols in (("with", with_), ("without", without)):
+        e = 0.0
+        for a, b in zip(edges[:-1], edges[1:]):
+            tr = np.r_[0:a, b:N]
+            sw = np.sqrt(wts[tr].reshape(-1))
+            sol, *_ = np.linalg.lstsq(W[tr][:, :, cols].reshape(-1, len(cols)) * sw[:, None],
+                                      Y[tr].reshape(-1) * sw, rcond=None)
+            e += np.sum((W[a:b][:, :, cols] @ sol - Y[a:b]) ** 2)
+        err[label] = float(np.sqrt(e / np.sum(Y ** 2)))
+    keep = err["with"] < 0.98 * err["without"]
+    return keep, (f"{folds}-fold cross-validation on the fit data, held-out torque error {100 * err['with']:.2f} % "
+                  f"with, {100 * err['without']:.2f} % without")
 
 
 PRIOR_WEIGHTS = (0.01, 0.1, 1.0, 10.0, 100.0, 1000.0)
@@ -570,13 +625,13 @@ def cross_validated_prior_weight(W, Y, wts, mr: MethodResult, bp, arm, motor_col
                                   "folds": [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]}
 
 
-def static_per_direction(arm, bp, beta, static, offsets) -> dict:
+def static_per_direction(arm, bp, beta, static, offsets, sqrt_viscous=False) -> dict:
     """f_s per direction from the breakaway torques and the identified gravity at each pose (motor -> values)."""
     out = {}
     poses = np.array([g["pose"] for g in static.gravity_], float)
     qm = (poses - arm.joint_offset) @ arm.Kinv.T
     z = np.zeros_like(qm)
-    Wg = bp.project(build_regressor(arm, qm, z, z, offsets=offsets))
+    Wg = bp.project(build_regressor(arm, qm, z, z, offsets=offsets, sqrt_viscous=sqrt_viscous))
     G = Wg @ beta                          # (n_records, n): gravity (+ offsets) at each pose, motor side
     per = {}
     for r, g in enumerate(static.gravity_):
@@ -611,12 +666,12 @@ def relative_error(pred: np.ndarray, meas: np.ndarray) -> tuple[np.ndarray, floa
 def textbook_baseline(W, Y, bp: BaseParameters) -> dict:
     """The textbook fit to compare with: plain OLS of the torque on the base regressor with Coulomb + viscous friction
     (no offsets, no weights, no constraints, no prior) on the same filtered fit samples as js2's model."""
-    cols = np.array([i for i in range(bp.n) if not bp.lead(i).startswith("off_")], int)
+    cols = np.array([i for i in range(bp.n) if not bp.lead(i).startswith(("off_", "Bs_"))], int)
     sol, *_ = np.linalg.lstsq(W[:, :, cols].reshape(-1, len(cols)), Y.reshape(-1), rcond=None)
     beta = np.zeros(bp.n)
     beta[cols] = sol
     return {"beta": beta, "description": "OLS on the base regressor with Coulomb + viscous friction, same filtered "
-                                         "fit samples, no offsets/weights/constraints/prior"}
+                                         "fit samples, no offsets/extra friction/weights/constraints/prior"}
 
 
 def validate(methods, chosen, val_parts, phys, bp, baseline: dict | None = None) -> dict:

@@ -36,7 +36,9 @@ def sign_checks(ident) -> list[dict]:
     ja, _, _ = ident.motor_inertia()
     for label, vals, unit in (("motor inertia J_a", ja, "kg m^2"), ("viscous friction B", ident.friction_viscous,
                                                                     "N m s/rad"),
-                              ("Coulomb friction f_c", ident.friction_coulomb, "N m")):
+                              ("Coulomb friction f_c", ident.friction_coulomb, "N m"),
+                              ("square-root viscous friction Bs", ident.friction_sqrt_viscous
+                               if ident.friction_sqrt_viscous is not None else [], "N m (s/rad)^0.5")):
         for j, v in zip(arm.joints, vals):
             if np.isfinite(v) and v < 0:
                 bad.append(f"{label} of {j} is {v:.4g} {unit}")
@@ -77,13 +79,14 @@ def gravity_ratio(ident, max_poses: int = 400) -> tuple[np.ndarray, np.ndarray]:
     if len(q) > max_poses:
         q = q[np.linspace(0, len(q) - 1, max_poses).astype(int)]
     z = np.zeros_like(q)
-    Ws = build_regressor(arm, q, z, z, offsets=offsets)
+    sqv = any(nm.startswith("Bs_") for nm in bp.std_names)
+    Ws = build_regressor(arm, q, z, z, offsets=offsets, sqrt_viscous=sqv)
     beta = ident.model.beta.copy()
     for i in range(bp.n):
         if bp.lead(i).startswith("off_"):
             beta[i] = 0.0
     g_id = bp.project(Ws) @ beta
-    g_nom = Ws @ standard_vector(arm, offsets=offsets)
+    g_nom = Ws @ standard_vector(arm, offsets=offsets, sqrt_viscous=sqv)
     r_id = np.sqrt(np.mean(g_id ** 2, axis=0))
     r_nom = np.sqrt(np.mean(g_nom ** 2, axis=0))
     loaded = r_nom > 0.05 * max(r_nom.max(), 1e-300)

@@ -66,8 +66,12 @@ def parser() -> argparse.ArgumentParser:
                         "motion bandwidth for fast motions, below the velocity cut-off)")
     p.add_argument("--iterations", type=int, default=35000,
                    help="RLS iterations (samples), 0 = all (paper: about 35,000)")
-    p.add_argument("--offsets", action=argparse.BooleanOptionalAction, default=True,
-                   help="a constant torque offset per axis (sensor or current bias) in the model (default: on)")
+    p.add_argument("--offsets", action=argparse.BooleanOptionalAction, default=None,
+                   help="a constant torque offset per axis (sensor or current bias) in the model (default: tried by "
+                        "the simultaneous method and kept if cross-validation on the fit data prefers it)")
+    p.add_argument("--sqrt-viscous", action=argparse.BooleanOptionalAction, default=None,
+                   help="a friction term Bs sgn(v) sqrt|v| per axis (default: tried by the simultaneous method and "
+                        "kept if cross-validation on the fit data prefers it)")
     p.add_argument("--fig3", default="J_4z,B_4,fc_4",
                    help="parameters plotted in Fig. 3 (paper's J_<i>z, or standard names such as Ja_2, B_4, fc_4, "
                         "Ixx_link4)")
@@ -98,7 +102,7 @@ def main(argv=None) -> int:
             fit_trials=None if args.fit_trials is None else
             tuple(t.strip() for t in args.fit_trials.split(",") if t.strip()),
             validation_trials=tuple(t.strip() for t in args.validation_trials.split(",") if t.strip()),
-            holdout=args.holdout, offsets=args.offsets,
+            holdout=args.holdout, offsets=args.offsets, sqrt_viscous=args.sqrt_viscous,
             fig3=tuple(t.strip() for t in args.fig3.split(",") if t.strip()),
             progress=not args.quiet, validate_paths=tuple(args.validate), prior_weight=args.prior_weight)
         ident = identify(args.logs, opt)
