@@ -81,7 +81,7 @@ def _fmt(c: float) -> str:
 
 
 def base_parameters(arm: ArmModel, offsets: bool = False, n_samples: int = 400, seed: int = 0,
-                    rtol: float = 1e-8, prefer: tuple = ("Ja_",)) -> BaseParameters:
+                    rtol: float = 1e-8, prefer: tuple = ("Ja_",), sqrt_viscous: bool = False) -> BaseParameters:
     """Structural base parameters of ``arm`` by pivoted QR on random states (joint angles uniform on +-pi).
 
     A combination that holds a parameter named ``prefer`` (the motor inertias: the paper's J_a) is named and scaled
@@ -94,9 +94,9 @@ def base_parameters(arm: ArmModel, offsets: bool = False, n_samples: int = 400, 
     ddqj = rng.normal(size=(n_samples, n)) * 5.0
     Kinv = arm.Kinv
     qm = (qj - arm.joint_offset) @ Kinv.T
-    W = build_regressor(arm, qm, dqj @ Kinv.T, ddqj @ Kinv.T, offsets=offsets)
+    W = build_regressor(arm, qm, dqj @ Kinv.T, ddqj @ Kinv.T, offsets=offsets, sqrt_viscous=sqrt_viscous)
     W = W.reshape(-1, W.shape[-1])
-    names = standard_names(arm, offsets)
+    names = standard_names(arm, offsets, sqrt_viscous)
     norms = np.linalg.norm(W, axis=0)
     scale_ref = norms.max()
     nonzero = norms > 1e-12 * scale_ref
@@ -142,10 +142,10 @@ def base_parameters(arm: ArmModel, offsets: bool = False, n_samples: int = 400, 
                           zero_index=np.flatnonzero(~nonzero), col_scale=scale, lead_index=lead)
 
 
-def friction_mask(bp: BaseParameters, arm: ArmModel, offsets: bool = False) -> np.ndarray:
+def friction_mask(bp: BaseParameters, arm: ArmModel, offsets: bool = False, sqrt_viscous: bool = False) -> np.ndarray:
     """Boolean mask over base parameters: True for the pure friction (viscous/Coulomb/offset) ones."""
-    g = column_groups(arm, offsets)
-    fr = set(np.concatenate([g["viscous"], g["coulomb"], g["offset"]]).tolist())
+    g = column_groups(arm, offsets, sqrt_viscous)
+    fr = set(np.concatenate([g["viscous"], g["coulomb"], g["offset"], g["sqrt_viscous"]]).tolist())
     return np.array([set(np.flatnonzero(bp.E[i])) <= fr for i in range(bp.n)])
 
 

@@ -95,10 +95,12 @@ def nearest_physical(p10: np.ndarray, floor_mass: float = 1e-3) -> np.ndarray:
 class PhysicalConsistencyFit:
     """Fit physically consistent standard parameters to base parameters (see module docstring).
 
-    ``fit(E, beta_hat, gram, inertial_nominal, n_links, motor_cols, fixed)``: ``E`` (r, p) base map restricted to
-    the parameters being fitted, ``gram`` (r x r) data information matrix (A / (N s^2)), ``fixed`` (p,) values for
-    columns not fitted (friction), NaN where fitted. After it: ``links_`` (n_links, 10), ``motor_inertia_``,
-    ``pi_`` (p,), ``beta_`` (E pi), ``physical_`` (bool per link), ``cost_``.
+    ``fit(E, beta_hat, gram, inertial_nominal, n_links, motor_cols, fixed, nonneg_cols=())``: ``E`` (r, p) base map
+    restricted to the parameters being fitted, ``gram`` (r x r) data information matrix (A / (N s^2)), ``fixed`` (p,)
+    values for columns not fitted (e.g. friction from the sequential tests), NaN where fitted. Motor inertias and the
+    ``nonneg_cols`` (viscous B and Coulomb f_c when friction is fitted here) are kept >= 0 (squared); other free
+    columns (offsets) are unconstrained. After it: ``links_`` (n_links, 10), ``motor_inertia_``, ``pi_`` (p,),
+    ``beta_`` (E pi), ``physical_`` (bool per link), ``cost_``.
     """
 
     def __init__(self, prior_weight: float = 1.0, max_nfev: int = 200, min_thickness: float = 1e-3):
@@ -106,11 +108,13 @@ class PhysicalConsistencyFit:
         self.max_nfev = max_nfev
         self.min_thickness = min_thickness
 
-    def fit(self, E, beta_hat, gram, inertial_nominal, n_links, motor_cols, fixed):
+    def fit(self, E, beta_hat, gram, inertial_nominal, n_links, motor_cols, fixed, nonneg_cols=()):
         E = np.asarray(E, float)
         p = E.shape[1]
         nl = 10 * n_links
         fixed = np.asarray(fixed, float)
+        motor_only = np.asarray(motor_cols, int)
+        motor_cols = sorted(set(int(j) for j in motor_cols) | {int(j) for j in nonneg_cols if np.isnan(fixed[j])})
         free_other = [j for j in range(nl, p) if np.isnan(fixed[j]) and j not in set(motor_cols)]
         L = np.linalg.cholesky(gram + 1e-12 * np.trace(gram) / len(gram) * np.eye(len(gram))).T
         nom = np.asarray(inertial_nominal, float).reshape(n_links, 10)
@@ -146,12 +150,15 @@ class PhysicalConsistencyFit:
         ja0 = np.zeros(len(mc))
         xo0 = np.zeros(len(free_other))
         x0 = np.concatenate([th0, np.sqrt(np.abs(ja0)) + 1e-4, xo0])
-        # refine motor inertia start: least squares on the linear part with links at nominal
+        # refine the start of the linear part (motor inertias, friction, offsets): least squares with links at
+        # nominal, in the data's metric
         pi_nom = assemble(x0)
-        Am = E[:, mc]
-        resid0 = beta_hat - E @ np.where(np.isin(np.arange(p), mc), 0.0, pi_nom)
-        ja_ls, *_ = np.linalg.lstsq(Am, resid0, rcond=None)
-        x0[10 * n_links:10 * n_links + len(mc)] = np.sqrt(np.clip(ja_ls, 1e-12, None))
+        lin = list(mc) + list(free_other)
+        Am = L @ E[:, lin]
+        resid0 = L @ (beta_hat - E @ np.where(np.isin(np.arange(p), lin), 0.0, pi_nom))
+        sol_lin, *_ = np.linalg.lstsq(Am, resid0, rcond=None)
+        x0[10 * n_links:10 * n_links + len(mc)] = np.sqrt(np.clip(sol_lin[:len(mc)], 1e-12, None))
+        x0[10 * n_links + len(mc):] = sol_lin[len(mc):]
         lam = np.sqrt(self.prior_weight)
 
         def res(x):
@@ -201,7 +208,7 @@ class PhysicalConsistencyFit:
                 pi[10 * i:10 * i + 10] = params_from_pseudo(J)
         self.pi_ = pi
         self.links_ = pi[:nl].reshape(n_links, 10)
-        self.motor_inertia_ = pi[mc]
+        self.motor_inertia_ = pi[motor_only]
         self.beta_ = E @ pi
         self.physical_ = np.array([is_physical(l, tol=1e-12) for l in self.links_])
         self.cost_ = float(sol.cost)

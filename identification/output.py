@@ -16,6 +16,7 @@ import numpy as np
 import yaml
 
 from .consistency import is_physical
+from .plausibility import plausibility_checks
 
 
 def _l(x) -> list:
@@ -42,13 +43,14 @@ def model_dict(ident) -> dict:
         "filters": {"velocity_cutoff_hz": ident.options.filters.fc_velocity_hz,
                     "acceleration_cutoff_hz": ident.options.filters.fc_acceleration_hz,
                     "order": ident.options.filters.order, "zero_phase": True,
-                    "edge_trim_s": ident.options.filters.trim},
+                    "edge_trim_s": ident.options.filters.trim, "reason": ident.options.filters.reason},
         "friction": {
             "static": _l(ident.friction_static), "static_std": _l(ident.friction_static_std),
             "coulomb": _l(ident.friction_coulomb), "coulomb_std": _l(ident.friction_coulomb_std),
             "viscous": _l(ident.friction_viscous), "viscous_std": _l(ident.friction_viscous_std),
         },
         "motor_inertia": _l(ja),
+        "torque_offset": _l(_offsets(ident)),
         "motor_inertia_std": _l(ja_sd),
         "motor_inertia_separately_identified": [bool(a) for a in alone],
         "base_parameters": {"names": list(bp.names), "values": _l(mr.beta), "std": _l(mr.std),
@@ -61,6 +63,12 @@ def model_dict(ident) -> dict:
                        "data": ident.validation["data"], "samples": ident.validation["samples"],
                        "nrms_definition": "rms / (max - min) of the measured (filtered) torque on the validation data"},
     }
+    fsq = ident.friction_sqrt_viscous
+    if fsq is not None and np.isfinite(fsq).any():
+        d["friction"]["sqrt_viscous"] = _l(fsq)
+        d["friction"]["sqrt_viscous_note"] = ("extra friction Bs sgn(v) sqrt|v| per axis (N m (s/rad)^0.5, same side "
+                                              "as viscous), kept because it lowered the held-out error in "
+                                              "cross-validation on the fit data")
     if ident.velocity is not None:
         pdirs = {}
         for m, ax in ident.velocity.axes_.items():
@@ -103,8 +111,37 @@ def model_dict(ident) -> dict:
         d["links_note"] = ("physically consistent standard parameters fitted to the base parameters (log-Cholesky); "
                            "inertia_com = [ixx, ixy, ixz, iyy, iyz, izz] about the centre of mass in the link frame")
         d["validation"]["rms_physical"] = _l(ident.validation["physical"]["rms"])
+        cv = getattr(ident.physical, "prior_weight_cv_", None)
+        d["links_prior_weight"] = float(ident.physical.prior_weight)
+        if cv is not None:
+            d["links_prior_weight_cv"] = {"weights": cv["weights"], "held_out_relative_error": cv["rel_error"],
+                                          "folds_fit_rows": [list(f) for f in cv["folds"]]}
+    val = ident.validation
+    d["validation"]["model"] = val["exported"]
+    d["validation"]["relative_error"] = _l(val["rel"])
+    d["validation"]["relative_error_overall"] = float(val["rel_overall"])
+    if "baseline" in val:
+        b = val["baseline"]
+        d["validation"]["baseline"] = {"description": b["description"], "rms": _l(b["rms"]), "nrms": _l(b["nrms"]),
+                                       "relative_error": _l(b["rel"]), "relative_error_overall": float(b["rel_overall"]),
+                                       "ratio_js2_to_baseline": float(val["rel_overall"] / b["rel_overall"])}
     d["urdf"] = "robot_identified.urdf"
     return d
+
+
+def _offsets(ident) -> np.ndarray:
+    """Constant torque offset per axis of the exported model (0 when offsets are not modelled)."""
+    out = np.zeros(ident.arm.n)
+    names = ident.bp.std_names
+    for k in range(ident.arm.n):
+        nm = f"off_{k + 1}"
+        if nm in names:
+            if ident.physical is not None:
+                out[k] = ident.physical.pi_[names.index(nm)]
+            else:
+                i = ident.bp.index_of(nm)
+                out[k] = ident.model.beta[i] if i is not None else 0.0
+    return out
 
 
 def _inertia_com(p10):
@@ -212,8 +249,10 @@ def verdict(ident, thresholds: dict | None = None) -> dict:
     checks.append({"check": "friction_identified_and_non_negative", "value": bool(np.all(np.isfinite(fr)) and
                                                                                    np.all(fr >= 0)),
                    "threshold": True, "pass": bool(np.all(np.isfinite(fr)) and np.all(fr >= 0))})
+    checks += plausibility_checks(ident)
     ok = all(c["pass"] for c in checks)
-    return {"pass": ok, "method": ident.chosen, "thresholds": th, "checks": checks,
+    reasons = [c["reason"] for c in checks if not c["pass"] and c.get("reason")]
+    return {"pass": ok, "reasons": reasons, "method": ident.chosen, "thresholds": th, "checks": checks,
             "truncated_input": any(i["truncated"] for i in ident.inputs), "notes": list(ident.notes)}
 
 

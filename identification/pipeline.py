@@ -14,7 +14,7 @@ writers in :mod:`identification.output`. Steps (the paper's, numbered as in ``do
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -37,18 +37,24 @@ class IdentificationError(Js2Error):
 
 @dataclass
 class IdentifyOptions:
-    method: str = "mixed"                    # mixed | simultaneous: which one is the model written out
-    filters: sg.FilterSettings = field(default_factory=sg.FilterSettings)
+    method: str = "auto"                     # mixed | simultaneous | auto (mixed when the log has static and
+                                             # velocity trials, else simultaneous): the model written out
+    filters: sg.FilterSettings | None = None  # None: chosen from the sample rate and motion (sg.choose_cutoffs)
     n_iter: int | None = 35000               # RLS iterations (samples); None = all
-    fit_trials: tuple = ("acceleration",)    # trials whose samples feed the inertial fit
+    fit_trials: tuple | None = None          # trials whose samples feed the inertial fit; None: 'acceleration' if
+                                             # present, else 'excitation', else every sample ('all')
     validation_trials: tuple = ("validation",)
     holdout: float = 0.25                    # tail fraction held out when no validation data exists
-    offsets: bool = False                    # constant torque offset per axis (off_k)
+    sqrt_viscous: bool | None = None         # Bs sgn(v) sqrt|v| friction per axis; None: tried by the simultaneous
+                                             # method, kept if 3-fold CV on the fit data prefers it
+    offsets: bool | None = None              # constant torque offset per axis (off_k): sensor/current bias; None:
+                                             # tried by the simultaneous method, kept if CV on the fit data prefers
     v_min_fraction: float = 0.03             # rows with |motor speed| below this fraction of the axis's p99 speed
                                              # are left out of the dynamic fit (stiction zone, eq. 1 has sgn only)
     fig3: tuple = ("J_4z", "B_4", "fc_4")    # parameters whose RLS convergence is plotted (Fig. 3)
     physical: bool = True
-    prior_weight: float = 1.0                # pull of the URDF in the physically consistent fit (see consistency.py)
+    prior_weight: float | None = None        # pull of the URDF in the physically consistent fit (see consistency.py);
+                                             # None: chosen by cross-validation on the fit data
     progress: bool = False
     validate_paths: tuple = ()               # extra held-out logs
 
@@ -92,6 +98,7 @@ class Identification:
     fit_data: dict = field(default_factory=dict)
     val_data: dict = field(default_factory=dict)
     static_per_direction: dict | None = None   # motor -> {"+": f_s+, "-": f_s-, "+_std", "-_std"}
+    friction_sqrt_viscous: np.ndarray | None = None   # Bs per axis (NaN: not in the model)
 
     @property
     def model(self) -> MethodResult:
@@ -108,7 +115,7 @@ class Identification:
             i = self.bp.index_of(name)
             if a:
                 ja[k], sd[k] = self.model.beta[i], self.model.std[i]
-            elif self.physical is not None:
+            if self.physical is not None:      # the exported model's value (>= 0)
                 ja[k] = self.physical.motor_inertia_[k]
         return ja, sd, alone
 
@@ -177,7 +184,7 @@ def _span_index(sig, t0, t1):
     return np.flatnonzero(sig.mask_between(t0, t1))
 
 
-def _regressor_rows(arm, bp, sig, idx, offsets, progress=None):
+def _regressor_rows(arm, bp, sig, idx, offsets, progress=None, sqrt_viscous=False):
     """Filtered base regressor (len(idx), n, r) and filtered torque at sample indices ``idx`` of ``sig``.
 
     The regressor is built from the 50 Hz signals (q, dq, d/dt dq) over the whole contiguous stretches that contain
@@ -204,6 +211,7 @@ def _regressor_rows(arm, bp, sig, idx, offsets, progress=None):
         for c0 in (progress(chunks) if progress is not None else chunks):
             c1 = min(c0 + step, hi - lo)
             Wb[c0:c1] = bp.project(build_regressor(arm, q[c0:c1], dq[c0:c1], ddq[c0:c1], offsets=offsets,
+                                                   sqrt_viscous=sqrt_viscous,
                                                    velocity_for_sign=None))
         # the torque's filter on every column (parallel filtering), a block of columns at a time (memory)
         flat = Wb.reshape(len(Wb), -1)
@@ -224,13 +232,36 @@ def _row_weights(v, frac):
     return (np.abs(v) >= frac * np.maximum(p99, 1e-12)).astype(float)
 
 
-def identify(paths, options: IdentifyOptions | None = None) -> Identification:
+def resolve_filters(logs, given: sg.FilterSettings | None) -> sg.FilterSettings:
+    """The filter settings used: ``given`` (checked against each log's Nyquist frequency), else
+    :func:`identification.signals.choose_cutoffs` from the lowest sample rate and the widest motion bandwidth."""
+    fs = min(float(lg.cycle_hz) for lg in logs)
+    if given is not None:
+        for lg in logs:
+            nyq = float(lg.cycle_hz) / 2
+            for name, v in (("velocity", given.fc_velocity_hz), ("acceleration", given.fc_acceleration_hz)):
+                if v is not None and not 0 < v < nyq:
+                    raise IdentificationError(
+                        f"{lg.path}: {name} filter cut-off {v:g} Hz must lie between 0 and the Nyquist frequency "
+                        f"{nyq:g} Hz of this {float(lg.cycle_hz):g} Hz log; give a lower one or leave it out "
+                        f"(then chosen from the data)")
+        if given.fc_velocity_hz is not None and given.fc_acceleration_hz is not None:
+            return given
+    bw = max(sg.motion_bandwidth(lg.feedback.motor_position, float(lg.cycle_hz)) for lg in logs)
+    if given is None:
+        return sg.choose_cutoffs(fs, bw)
+    ch = sg.choose_cutoffs(fs, bw, given.fc_velocity_hz, given.fc_acceleration_hz, given.order)
+    return replace(given, fc_velocity_hz=ch.fc_velocity_hz, fc_acceleration_hz=ch.fc_acceleration_hz, reason=ch.reason)
+
+
+def identify(paths, options: IdentifyOptions | None = None, _notes=()) -> Identification:
     opt = options or IdentifyOptions()
     paths = [p if hasattr(p, "feedback") else Path(p) for p in paths]
     if not paths:
         raise IdentificationError("no log given")
     notes: list[str] = []
     logs = load_logs(paths)
+    post_notes = list(_notes)
     check_same_arm(logs)
     arm = _arm_from_log(logs[0])
     n = arm.n
@@ -253,7 +284,9 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
             notes.append(f"{lg.path}: {int(bad.any(axis=1).sum())} cycles with NaN/inf values excluded "
                          f"(treated as lost cycles, not interpolated)")
     prog = opt.progress
-    # 2. signals per log
+    # 2. signals per log, through filters chosen from the sample rate and the motion unless given
+    opt = replace(opt, filters=resolve_filters(logs, opt.filters))
+    notes.append(f"filters: {opt.filters.reason}")
     sigs = []
     for lg in logs:
         sig = sg.from_log(lg, opt.filters)
@@ -266,9 +299,6 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
             spans.setdefault(sp.name, []).append(sp)
         # "all": every sample of every log (logs without trial events; --fit-trials all)
         spans.setdefault("all", []).append(TrialSpan("all", float(sig.t[0]), float(sig.t[-1]), i))
-    bp = base_parameters(arm, offsets=opt.offsets)
-    groups = column_groups(arm, opt.offsets)
-    fmask = friction_mask(bp, arm, opt.offsets)
     # 3. sequential part
     static = velocity = None
     fs_ = np.full(n, np.nan)
@@ -301,6 +331,29 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
                                                    balance=static.gravity_ if static is not None else None)
             fc_, fc_sd = velocity.coulomb_, velocity.coulomb_std_
             fv_, fv_sd = velocity.viscous_, velocity.viscous_std_
+    if opt.method == "auto":
+        if "velocity" in spans and np.all(np.isfinite(fc_)) and np.all(np.isfinite(fv_)):
+            opt = replace(opt, method="mixed")
+        else:
+            have = sorted(k for k in spans if k != "all") or ["none"]
+            why = ("the 'velocity' trial has no usable steady segment on every axis" if "velocity" in spans else
+                   f"no friction trials in the input, trials: {', '.join(have)}")
+            opt = replace(opt, method="simultaneous")
+            notes.append(f"method: simultaneous ({why}); friction identified with the inertial parameters")
+    if opt.fit_trials is None:
+        pick = next((t for t in ("acceleration", "excitation") if t in spans), "all")
+        opt = replace(opt, fit_trials=(pick,))
+        if pick != "acceleration":
+            notes.append(f"fit data: the {pick!r} trial" if pick != "all" else
+                         "fit data: every sample (no 'acceleration' or 'excitation' trial in the input)")
+    # the square-root viscous term: tried by the simultaneous method, kept when cross-validation on the fit data says
+    sqv = opt.sqrt_viscous if opt.sqrt_viscous is not None else opt.method == "simultaneous"
+    tried = {"sqrt_viscous": opt.sqrt_viscous is None and sqv,
+             "offsets": opt.offsets is None and opt.method == "simultaneous"}
+    opt = replace(opt, offsets=bool(opt.offsets) if opt.offsets is not None else opt.method == "simultaneous")
+    bp = base_parameters(arm, offsets=opt.offsets, sqrt_viscous=sqv)
+    groups = column_groups(arm, opt.offsets, sqv)
+    fmask = friction_mask(bp, arm, opt.offsets, sqv)
     if opt.method == "mixed":
         missing = [k + 1 for k in range(n) if not (np.isfinite(fc_[k]) and np.isfinite(fv_[k]))]
         if "velocity" not in spans:
@@ -326,7 +379,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
         for sp in spans[name]:
             sig = sigs[sp.log_index]
             idx = _span_index(sig, sp.t0, sp.t1)
-            W, y, v = _regressor_rows(arm, bp, sig, idx, opt.offsets, _progress(prog, f"regressor {name}"))
+            W, y, v = _regressor_rows(arm, bp, sig, idx, opt.offsets, _progress(prog, f"regressor {name}"), sqv)
             fitW.append(W), fitY.append(y), fitV.append(v)
             fit_where.append((sig, idx))
     W = np.concatenate(fitW)
@@ -338,7 +391,8 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
         for sp in spans[name]:
             sig = sigs[sp.log_index]
             idx = _span_index(sig, sp.t0, sp.t1)
-            val_parts.append(_regressor_rows(arm, bp, sig, idx, opt.offsets) + (f"{logs[sp.log_index].path}:{name}",))
+            val_parts.append(_regressor_rows(arm, bp, sig, idx, opt.offsets, None, sqv)
+                             + (f"{logs[sp.log_index].path}:{name}",))
             val_where.append((sig, idx))
     for vp in opt.validate_paths:
         vlog = read_log(vp)
@@ -351,7 +405,7 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
                        "truncated": bool(vlog.truncated), "trials": vlog.trials(), "role": "validation"})
         for s in chosen:
             idx = _span_index(vsig, s.t0, s.t1)
-            val_parts.append(_regressor_rows(arm, bp, vsig, idx, opt.offsets) + (f"{vlog.path}:{s.name}",))
+            val_parts.append(_regressor_rows(arm, bp, vsig, idx, opt.offsets, None, sqv) + (f"{vlog.path}:{s.name}",))
             val_where.append((vsig, idx))
     if not val_parts:
         k = int(round(len(W) * (1 - opt.holdout)))
@@ -374,6 +428,16 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
     if len(W) < 2 * bp.n:
         raise IdentificationError(f"{logs[0].path}: only {len(W)} usable samples in the fit trial(s)")
     wts = _row_weights(V, opt.v_min_fraction)
+    decided, retry_notes = {}, []
+    for term, prefix, label in (("offsets", "off_", "constant torque offsets"),
+                                ("sqrt_viscous", "Bs_", "square-root viscous friction")):
+        if tried[term]:
+            keep, cv_txt = _term_cross_validation(W, Y, wts, bp, prefix)
+            decided[term] = keep
+            (notes if keep else retry_notes).append(f"{label} {'kept' if keep else 'left out'}: {cv_txt}")
+    if retry_notes:
+        return identify(paths, replace(options or IdentifyOptions(), **decided),
+                        _notes=[nt for nt in notes if nt.startswith(("constant torque", "square-root"))] + retry_notes)
     cond = condition_number(W)
     cond_raw = condition_number(W, normalise=False)
     # 5. estimators
@@ -426,41 +490,71 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
     phys = None
     if opt.physical:
         mr = methods[chosen]
-        Hn = W.reshape(-1, bp.n) * np.sqrt(wts.reshape(-1, 1))
         # information of the data, with the same correction for filtered (correlated) rows as the standard errors
         corr = sigs[0].fs / (2 * opt.filters.fc_acceleration_hz)
-        gram = Hn.T @ Hn / max(mr.rls.sigma2_ * corr, 1e-30)
+        scale = max(mr.rls.sigma2_ * corr, 1e-30)
         p = len(bp.std_names)
         fixed_std = np.full(p, np.nan)
-        # friction standard values = the chosen method's friction base parameters
+        nonneg = []
+        # friction measured by the sequential tests (mixed) stays as measured; fitted friction (simultaneous) is
+        # refitted here with B >= 0 and f_c >= 0; offsets are free
         for i in fr:
-            fixed_std[bp.std_names.index(bp.lead(i))] = mr.beta[i]
+            lead = bp.lead(i)
+            j = bp.std_names.index(lead)
+            if lead.startswith("off_"):
+                continue
+            if lead.startswith("Bs_") and chosen == "mixed":
+                fixed_std[j] = 0.0
+                continue
+            if lead.startswith("Bs_"):
+                nonneg.append(j)
+                continue
+            if chosen == "mixed":
+                fixed_std[j] = mr.beta[i]
+            else:
+                nonneg.append(j)
+        fit_args = (bp, arm, groups["motor"], fixed_std, nonneg, scale)
         try:
-            phys = PhysicalConsistencyFit(prior_weight=opt.prior_weight).fit(
-                bp.E, mr.beta, gram, arm.nominal_inertial, n, groups["motor"],
-                                                fixed_std)
+            weight, cv = opt.prior_weight, None
+            if weight is None:
+                weight, cv = cross_validated_prior_weight(W, Y, wts, mr, *fit_args)
+                notes.append(f"prior weight toward the URDF: {weight:g}, chosen by {len(cv['folds'])}-fold "
+                             f"cross-validation on the fit data (held-out torque error "
+                             + ", ".join(f"{w:g}: {100 * e:.2f} %" for w, e in zip(cv["weights"], cv["rel_error"]))
+                             + ")")
+            phys = _physical_fit(W, Y, wts, mr, weight, *fit_args)
+            phys.prior_weight_cv_ = cv
         except np.linalg.LinAlgError as exc:
             notes.append(f"physically consistent fit failed ({exc})")
     # static friction per direction: with the identified gravity at each static pose (eq. 2 with G known),
     # f_s+ = tau+ - G and f_s- = G - tau-; eq. 3 alone gives only their mean
     static_dir = None
     if static is not None and static.gravity_:
-        static_dir = static_per_direction(arm, bp, methods[chosen].beta, static, opt.offsets)
-    # 7. validation
-    validation = validate(methods, chosen, val_parts, phys, bp)
+        static_dir = static_per_direction(arm, bp, methods[chosen].beta, static, opt.offsets, sqv)
+    # 7. validation, beside the textbook baseline fitted on the same samples
+    baseline = textbook_baseline(W, Y, bp)
+    validation = validate(methods, chosen, val_parts, phys, bp, baseline)
     fit_data = {"W": W, "Y": Y, "V": V, "weights": wts, "where": fit_where}
     friction_out = (fs_, fs_sd, fc_, fc_sd, fv_, fv_sd)
     if chosen == "simultaneous":
-        # friction as the simultaneous method identified it
+        # friction as the simultaneous method identified it (values of the exported, constrained model when there is
+        # one; standard errors of the unconstrained estimate)
         for i in fr:
             kind, k = bp.lead(i).split("_")
             k = int(k) - 1
+            val = methods[chosen].beta[i] if phys is None else phys.pi_[bp.std_names.index(bp.lead(i))]
             if kind == "B":
-                fv_[k], fv_sd[k] = methods[chosen].beta[i], methods[chosen].std[i]
+                fv_[k], fv_sd[k] = val, methods[chosen].std[i]
             elif kind == "fc":
-                fc_[k], fc_sd[k] = methods[chosen].beta[i], methods[chosen].std[i]
+                fc_[k], fc_sd[k] = val, methods[chosen].std[i]
         friction_out = (fs_, fs_sd, fc_, fc_sd, fv_, fv_sd)
-    return Identification(options=opt, arm=arm, bp=bp, logs=logs, inputs=inputs, notes=notes, static=static,
+    fsq = np.full(n, np.nan)
+    for i in fr:
+        if bp.lead(i).startswith("Bs_"):
+            k = int(bp.lead(i).split("_")[1]) - 1
+            fsq[k] = methods[chosen].beta[i] if phys is None else phys.pi_[bp.std_names.index(bp.lead(i))]
+    return Identification(options=opt, arm=arm, bp=bp, logs=logs, inputs=inputs, notes=notes + post_notes,
+                          static=static, friction_sqrt_viscous=fsq,
                           velocity=velocity, friction_static=friction_out[0], friction_static_std=friction_out[1],
                           friction_coulomb=friction_out[2], friction_coulomb_std=friction_out[3],
                           friction_viscous=friction_out[4], friction_viscous_std=friction_out[5], methods=methods,
@@ -469,13 +563,75 @@ def identify(paths, options: IdentifyOptions | None = None) -> Identification:
                           val_data={"parts": val_parts, "where": val_where}, static_per_direction=static_dir)
 
 
-def static_per_direction(arm, bp, beta, static, offsets) -> dict:
+def _term_cross_validation(W, Y, wts, bp: BaseParameters, prefix: str, folds: int = 3) -> tuple[bool, str]:
+    """Does a group of columns (leads starting with ``prefix``) lower the held-out torque error of a weighted least
+    squares fit in ``folds`` contiguous blocks of the *fit* data? Returns (keep, one-line account)."""
+    N = len(W)
+    edges = np.linspace(0, N, folds + 1).astype(int)
+    with_ = np.arange(bp.n)
+    without = np.array([i for i in range(bp.n) if not bp.lead(i).startswith(prefix)], int)
+    err = {}
+    for label, cols in (("with", with_), ("without", without)):
+        e = 0.0
+        for a, b in zip(edges[:-1], edges[1:]):
+            tr = np.r_[0:a, b:N]
+            sw = np.sqrt(wts[tr].reshape(-1))
+            sol, *_ = np.linalg.lstsq(W[tr][:, :, cols].reshape(-1, len(cols)) * sw[:, None],
+                                      Y[tr].reshape(-1) * sw, rcond=None)
+            e += np.sum((W[a:b][:, :, cols] @ sol - Y[a:b]) ** 2)
+        err[label] = float(np.sqrt(e / np.sum(Y ** 2)))
+    keep = err["with"] < 0.98 * err["without"]
+    return keep, (f"{folds}-fold cross-validation on the fit data, held-out torque error {100 * err['with']:.2f} % "
+                  f"with, {100 * err['without']:.2f} % without")
+
+
+PRIOR_WEIGHTS = (0.01, 0.1, 1.0, 10.0, 100.0, 1000.0)
+
+
+def _physical_fit(W, Y, wts, mr: MethodResult, weight, bp, arm, motor_cols, fixed_std, nonneg, scale,
+                  beta_hat=None) -> PhysicalConsistencyFit:
+    """Physically consistent standard parameters (links, J_a >= 0, fitted friction >= 0, offsets) closest to the data
+    ``W, Y`` (weighted rows) in the metric of its information matrix, pulled toward the URDF by ``weight``."""
+    Hn = W.reshape(-1, bp.n) * np.sqrt(wts.reshape(-1, 1))
+    gram = Hn.T @ Hn / scale
+    return PhysicalConsistencyFit(prior_weight=weight).fit(
+        bp.E, mr.beta if beta_hat is None else beta_hat, gram, arm.nominal_inertial, arm.n, motor_cols, fixed_std,
+        nonneg)
+
+
+def cross_validated_prior_weight(W, Y, wts, mr: MethodResult, bp, arm, motor_cols, fixed_std, nonneg, scale,
+                                 weights=PRIOR_WEIGHTS, folds: int = 3) -> tuple[float, dict]:
+    """The prior weight (pull toward the URDF) with the lowest held-out torque error in ``folds`` contiguous blocks of
+    the *fit* data (each block predicted by the model fitted on the others). Validation data never enter."""
+    N = len(W)
+    edges = np.linspace(0, N, folds + 1).astype(int)
+    fixed_b = np.setdiff1d(np.arange(bp.n), mr.free)
+    err = np.zeros(len(weights))
+    for a, b in zip(edges[:-1], edges[1:]):
+        tr = np.r_[0:a, b:N]
+        Wt, Yt, wt = W[tr], Y[tr], wts[tr]
+        y = Yt - (Wt[:, :, fixed_b] @ mr.beta[fixed_b] if len(fixed_b) else 0.0)
+        sw = np.sqrt(wt.reshape(-1))
+        sol, *_ = np.linalg.lstsq(Wt[:, :, mr.free].reshape(-1, len(mr.free)) * sw[:, None], y.reshape(-1) * sw,
+                                  rcond=None)
+        bh = mr.beta.copy()
+        bh[mr.free] = sol
+        for k, wgt in enumerate(weights):
+            ph = _physical_fit(Wt, Yt, wt, mr, wgt, bp, arm, motor_cols, fixed_std, nonneg, scale, beta_hat=bh)
+            err[k] += np.sum((W[a:b] @ ph.beta_ - Y[a:b]) ** 2)
+    rel = np.sqrt(err / np.sum(Y ** 2))
+    best = int(np.argmin(rel))
+    return float(weights[best]), {"weights": list(map(float, weights)), "rel_error": rel.tolist(),
+                                  "folds": [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]}
+
+
+def static_per_direction(arm, bp, beta, static, offsets, sqrt_viscous=False) -> dict:
     """f_s per direction from the breakaway torques and the identified gravity at each pose (motor -> values)."""
     out = {}
     poses = np.array([g["pose"] for g in static.gravity_], float)
     qm = (poses - arm.joint_offset) @ arm.Kinv.T
     z = np.zeros_like(qm)
-    Wg = bp.project(build_regressor(arm, qm, z, z, offsets=offsets))
+    Wg = bp.project(build_regressor(arm, qm, z, z, offsets=offsets, sqrt_viscous=sqrt_viscous))
     G = Wg @ beta                          # (n_records, n): gravity (+ offsets) at each pose, motor side
     per = {}
     for r, g in enumerate(static.gravity_):
@@ -500,7 +656,25 @@ def rms_nrms(pred: np.ndarray, meas: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return r, r / np.where(rng > 0, rng, np.nan)
 
 
-def validate(methods, chosen, val_parts, phys, bp) -> dict:
+def relative_error(pred: np.ndarray, meas: np.ndarray) -> tuple[np.ndarray, float]:
+    """Relative torque error per axis ``||pred_k - meas_k|| / ||meas_k||`` and overall (Frobenius norms)."""
+    e = pred - meas
+    return (np.linalg.norm(e, axis=0) / np.linalg.norm(meas, axis=0),
+            float(np.linalg.norm(e) / max(np.linalg.norm(meas), 1e-300)))
+
+
+def textbook_baseline(W, Y, bp: BaseParameters) -> dict:
+    """The textbook fit to compare with: plain OLS of the torque on the base regressor with Coulomb + viscous friction
+    (no offsets, no weights, no constraints, no prior) on the same filtered fit samples as js2's model."""
+    cols = np.array([i for i in range(bp.n) if not bp.lead(i).startswith(("off_", "Bs_"))], int)
+    sol, *_ = np.linalg.lstsq(W[:, :, cols].reshape(-1, len(cols)), Y.reshape(-1), rcond=None)
+    beta = np.zeros(bp.n)
+    beta[cols] = sol
+    return {"beta": beta, "description": "OLS on the base regressor with Coulomb + viscous friction, same filtered "
+                                         "fit samples, no offsets/extra friction/weights/constraints/prior"}
+
+
+def validate(methods, chosen, val_parts, phys, bp, baseline: dict | None = None) -> dict:
     Wv = np.concatenate([p[0] for p in val_parts])
     Yv = np.concatenate([p[1] for p in val_parts])
     out = {"data": [p[3] for p in val_parts], "samples": int(len(Wv))}
@@ -517,9 +691,19 @@ def validate(methods, chosen, val_parts, phys, bp) -> dict:
         pred = Wv @ phys.beta_
         r, nr = rms_nrms(pred, Yv)
         out["physical"] = {"rms": r, "nrms": nr, "pred": pred}
+    if baseline is not None:
+        pred = Wv @ baseline["beta"]
+        r, nr = rms_nrms(pred, Yv)
+        rel, rel_all = relative_error(pred, Yv)
+        out["baseline"] = {"rms": r, "nrms": nr, "pred": pred, "rel": rel, "rel_overall": rel_all,
+                           "description": baseline["description"]}
+    # the exported model: the physically consistent one (robot_identified.urdf + model.yaml) when fitted
+    exp = "physical" if phys is not None else chosen
+    out["exported"] = exp
     out["measured"] = Yv
-    out["rms"] = out[chosen]["rms"]
-    out["nrms"] = out[chosen]["nrms"]
+    out["rms"] = out[exp]["rms"]
+    out["nrms"] = out[exp]["nrms"]
+    out["rel"], out["rel_overall"] = relative_error(Wv @ (phys.beta_ if phys is not None else methods[chosen].beta), Yv)
     return out
 
 

@@ -15,11 +15,11 @@ def _identity_bp(names) -> BaseParameters:
                           zero_index=np.arange(0))
 
 
-def _rows(arm, where, offsets):
-    bp = _identity_bp(standard_names(arm, offsets))
+def _rows(arm, where, offsets, sqrt_viscous=False):
+    bp = _identity_bp(standard_names(arm, offsets, sqrt_viscous))
     Ws, Ys = [], []
     for sig, idx in where:
-        W, Y, _ = _regressor_rows(arm, bp, sig, idx, offsets)
+        W, Y, _ = _regressor_rows(arm, bp, sig, idx, offsets, None, sqrt_viscous)
         Ws.append(W), Ys.append(Y)
     return np.concatenate(Ws), np.concatenate(Ys)
 

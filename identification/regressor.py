@@ -17,7 +17,9 @@ left out and the "motor" columns become per-joint armature / viscous / Coulomb t
 Standard parameter names (per body ``<link>``, pinocchio's order, inertia about the joint frame origin):
 ``m_<link>, mx_<link>, my_<link>, mz_<link>, Ixx_<link>, Ixy_<link>, Iyy_<link>, Ixz_<link>, Iyz_<link>, Izz_<link>``,
 then ``Ja_<k>`` (motor inertia, kg m^2), ``B_<k>`` (viscous, N m s/rad), ``fc_<k>`` (Coulomb, N m), optionally
-``off_<k>`` (constant torque offset, N m) with k the 1-based drive number.
+``off_<k>`` (constant torque offset, N m) and ``Bs_<k>`` (square-root viscous friction ``Bs sgn(v) sqrt|v|``,
+N m (s/rad)^0.5, a velocity-dependent friction that grows less than linearly, e.g. in gears), with k the 1-based
+drive number.
 """
 from __future__ import annotations
 
@@ -128,7 +130,7 @@ def _joint_axis(model: pin.Model, jid: int) -> np.ndarray:
     return lin / max(np.linalg.norm(lin), 1e-12)
 
 
-def standard_names(arm: ArmModel, offsets: bool = False) -> list[str]:
+def standard_names(arm: ArmModel, offsets: bool = False, sqrt_viscous: bool = False) -> list[str]:
     """Names of the standard parameter vector's columns (see module docstring)."""
     names = [f"{p}_{lk}" for lk in arm.links for p in INERTIAL_NAMES]
     n = arm.n
@@ -137,15 +139,20 @@ def standard_names(arm: ArmModel, offsets: bool = False) -> list[str]:
     names += [f"fc_{k + 1}" for k in range(n)]
     if offsets:
         names += [f"off_{k + 1}" for k in range(n)]
+    if sqrt_viscous:
+        names += [f"Bs_{k + 1}" for k in range(n)]
     return names
 
 
-def column_groups(arm: ArmModel, offsets: bool = False) -> dict[str, np.ndarray]:
-    """Indices of the column groups: ``inertial`` (links), ``motor`` (J_a), ``viscous``, ``coulomb``, ``offset``."""
+def column_groups(arm: ArmModel, offsets: bool = False, sqrt_viscous: bool = False) -> dict[str, np.ndarray]:
+    """Indices of the column groups: ``inertial`` (links), ``motor`` (J_a), ``viscous``, ``coulomb``, ``offset``,
+    ``sqrt_viscous``."""
     n, nl = arm.n, 10 * arm.n
     g = {"inertial": np.arange(nl), "motor": np.arange(nl, nl + n), "viscous": np.arange(nl + n, nl + 2 * n),
          "coulomb": np.arange(nl + 2 * n, nl + 3 * n)}
     g["offset"] = np.arange(nl + 3 * n, nl + 4 * n) if offsets else np.arange(0)
+    k0 = nl + (4 if offsets else 3) * n
+    g["sqrt_viscous"] = np.arange(k0, k0 + n) if sqrt_viscous else np.arange(0)
     return g
 
 
@@ -187,7 +194,7 @@ def rigid_body_regressor(arm: ArmModel, q_joint: np.ndarray, dq_joint: np.ndarra
 
 def build_regressor(arm: ArmModel, q_motor: np.ndarray, dq_motor: np.ndarray, ddq_motor: np.ndarray,
                     offsets: bool = False, velocity_for_sign: np.ndarray | None = None,
-                    progress=None, chunk: int = 1024) -> np.ndarray:
+                    progress=None, chunk: int = 1024, sqrt_viscous: bool = False) -> np.ndarray:
     """Full observation block per sample (eq. 1), shape (N, n, p), on the log's torque side.
 
     Motor side (``torque_side: motor``): ``[K^T Y(theta) | diag(theta_m_dd) | diag(theta_m_d) | diag(sgn theta_m_d)]``.
@@ -198,13 +205,13 @@ def build_regressor(arm: ArmModel, q_motor: np.ndarray, dq_motor: np.ndarray, dd
     N = len(q_motor)
     if N > chunk:
         n = q_motor.shape[1]
-        p = 10 * n + 3 * n + (n if offsets else 0)
+        p = 10 * n + 3 * n + (n if offsets else 0) + (n if sqrt_viscous else 0)
         out = np.empty((N, n, p))
         for c0 in range(0, N, chunk):
             c1 = min(c0 + chunk, N)
             out[c0:c1] = build_regressor(arm, q_motor[c0:c1], dq_motor[c0:c1], ddq_motor[c0:c1], offsets,
                                          None if velocity_for_sign is None else velocity_for_sign[c0:c1],
-                                         None, chunk)
+                                         None, chunk, sqrt_viscous)
         return out
     K = arm.K
     q_joint = arm.joint_from_motor(q_motor)
@@ -212,7 +219,7 @@ def build_regressor(arm: ArmModel, q_motor: np.ndarray, dq_motor: np.ndarray, dd
     ddq_joint = ddq_motor @ K.T
     Y = rigid_body_regressor(arm, q_joint, dq_joint, ddq_joint, progress=progress)
     N, n = q_motor.shape
-    p = 10 * n + 3 * n + (n if offsets else 0)
+    p = 10 * n + 3 * n + (n if offsets else 0) + (n if sqrt_viscous else 0)
     W = np.empty((N, n, p))
     W[:, :, 10 * n:] = 0.0
     if arm.torque_side == "joint":
@@ -229,11 +236,13 @@ def build_regressor(arm: ArmModel, q_motor: np.ndarray, dq_motor: np.ndarray, dd
     W[:, idx, 12 * n + idx] = np.sign(vs)
     if offsets:
         W[:, idx, 13 * n + idx] = 1.0
+    if sqrt_viscous:
+        W[:, idx, (14 if offsets else 13) * n + idx] = np.sign(d) * np.sqrt(np.abs(d))
     return W
 
 
 def standard_vector(arm: ArmModel, inertial: np.ndarray | None = None, motor_inertia=None, viscous=None,
-                    coulomb=None, offset=None, offsets: bool = False) -> np.ndarray:
+                    coulomb=None, offset=None, offsets: bool = False, sqrt_viscous: bool = False) -> np.ndarray:
     """Assemble a standard parameter vector (default inertial: the URDF's nominal values; others 0)."""
     n = arm.n
     z = np.zeros(n)
@@ -243,4 +252,6 @@ def standard_vector(arm: ArmModel, inertial: np.ndarray | None = None, motor_ine
              z if coulomb is None else np.asarray(coulomb, float)]
     if offsets:
         parts.append(z if offset is None else np.asarray(offset, float))
+    if sqrt_viscous:
+        parts.append(z)
     return np.concatenate(parts)

@@ -23,18 +23,24 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter, detrend, sosfiltfilt, welch
 
 from js2spec.errors import LogError
+
+PAPER_FC_VELOCITY_HZ = 50.0       # the paper's velocity filter cut-off
+PAPER_FC_ACCELERATION_HZ = 7.0    # the paper's acceleration (and torque) filter cut-off
+NYQUIST_MARGIN = 0.8              # chosen cut-offs stay at or below this fraction of the Nyquist frequency
+MOTION_HEADROOM = 2.0             # the acceleration/torque cut-off is at least this multiple of the motion bandwidth
 
 
 @dataclass
 class FilterSettings:
-    fc_velocity_hz: float = 50.0      # paper: velocity filter cut-off
-    fc_acceleration_hz: float = 7.0   # paper: acceleration (and torque) filter cut-off
+    fc_velocity_hz: float = PAPER_FC_VELOCITY_HZ
+    fc_acceleration_hz: float = PAPER_FC_ACCELERATION_HZ
     order: int = 4                    # Butterworth order (each pass; zero-phase doubles the attenuation)
     trim_s: float | None = None       # edge trim per run; default 1.5 / fc_acceleration
     max_bridge: int = 5               # longest gap (cycles) bridged for filtering (then excluded)
+    reason: str = "given"             # why these cut-offs (written to model.yaml and the summary)
 
     @property
     def trim(self) -> float:
@@ -73,6 +79,77 @@ class Signals:
 
     def mask_between(self, t0: float, t1: float) -> np.ndarray:
         return self.keep & (self.t >= t0) & (self.t <= t1)
+
+
+def motion_bandwidth(q: np.ndarray, fs_hz: float, fraction: float = 0.999) -> float:
+    """Bandwidth of a motion (Hz): the frequency below which ``fraction`` of the power of the detrended positions
+    lies (Welch spectrum, 8 s segments), the largest over the columns. Rows with NaN are dropped."""
+    q = np.asarray(q, float)
+    if q.ndim == 1:
+        q = q[:, None]
+    q = q[np.all(np.isfinite(q), axis=1)]
+    if len(q) < 16:
+        return float("nan")
+    out = 0.0
+    for k in range(q.shape[1]):
+        f, P = welch(detrend(q[:, k]), fs=fs_hz, nperseg=min(len(q), int(8 * fs_hz)))
+        tot = P.sum()
+        if tot <= 0:
+            continue
+        out = max(out, float(f[min(np.searchsorted(np.cumsum(P) / tot, fraction), len(f) - 1)]))
+    return out
+
+
+def choose_cutoffs(fs_hz: float, motion_bandwidth_hz: float | None = None, fc_velocity_hz: float | None = None,
+                   fc_acceleration_hz: float | None = None, order: int = 4) -> FilterSettings:
+    """Filter cut-offs that follow the data: the paper's 50 Hz (velocity) and 7 Hz (acceleration and torque) where the
+    sample rate and the motion allow, otherwise the nearest admissible values. ``reason`` says which rule applied.
+
+    * velocity: ``min(50 Hz, 0.8 x Nyquist)`` -- the paper's value unless the log is sampled below 125 Hz;
+    * acceleration/torque: ``max(7 Hz, 2 x motion bandwidth)`` (the motion's 99.9 % power frequency, see
+      :func:`motion_bandwidth`, so a fast excitation is not filtered away), then at most the velocity cut-off and
+      ``0.8 x Nyquist``.
+
+    Cut-offs given by the caller are kept if they lie below the Nyquist frequency (else ``ValueError`` naming it).
+    Used by ``identification.pipeline.identify`` when no cut-offs are given; callable by any consumer that filters
+    js2 logs the same way (e.g. the diagnosis)."""
+    fs_hz = float(fs_hz)
+    if not fs_hz > 0:
+        raise ValueError(f"sample rate {fs_hz} Hz must be positive")
+    nyq = fs_hz / 2
+    cap = NYQUIST_MARGIN * nyq
+    for name, v in (("velocity", fc_velocity_hz), ("acceleration", fc_acceleration_hz)):
+        if v is not None and not 0 < v < nyq:
+            raise ValueError(f"{name} filter cut-off {v:g} Hz must lie between 0 and the Nyquist frequency "
+                             f"{nyq:g} Hz of this {fs_hz:g} Hz log (or leave it out: it is then chosen from the data)")
+    why = []
+    if fc_velocity_hz is None:
+        fv = min(PAPER_FC_VELOCITY_HZ, cap)
+        why.append("velocity 50 Hz (paper)" if fv == PAPER_FC_VELOCITY_HZ else
+                   f"velocity {fv:.3g} Hz = {NYQUIST_MARGIN:g} x Nyquist (the paper's 50 Hz is above what a "
+                   f"{fs_hz:g} Hz log holds)")
+    else:
+        fv = float(fc_velocity_hz)
+        why.append(f"velocity {fv:g} Hz (given)")
+    if fc_acceleration_hz is None:
+        bw = motion_bandwidth_hz if motion_bandwidth_hz is not None and np.isfinite(motion_bandwidth_hz) else 0.0
+        fa = max(PAPER_FC_ACCELERATION_HZ, MOTION_HEADROOM * bw)
+        if fa == PAPER_FC_ACCELERATION_HZ:
+            txt = "acceleration/torque 7 Hz (paper)"
+        else:
+            txt = (f"acceleration/torque {fa:.3g} Hz = {MOTION_HEADROOM:g} x the motion bandwidth {bw:.3g} Hz "
+                   f"(the paper's 7 Hz would filter the motion)")
+        if fa > min(fv, cap):
+            fa = min(fv, cap)
+            txt = f"acceleration/torque {fa:.3g} Hz (capped at the velocity cut-off / {NYQUIST_MARGIN:g} x Nyquist)"
+        why.append(txt)
+    else:
+        fa = float(fc_acceleration_hz)
+        why.append(f"acceleration/torque {fa:g} Hz (given)")
+    bwtxt = f", motion bandwidth {motion_bandwidth_hz:.3g} Hz" if motion_bandwidth_hz is not None and np.isfinite(
+        motion_bandwidth_hz) else ""
+    return FilterSettings(fc_velocity_hz=fv, fc_acceleration_hz=fa, order=order,
+                          reason=f"{'; '.join(why)} (sample rate {fs_hz:g} Hz{bwtxt})")
 
 
 def _sos(fc: float, fs: float, order: int):

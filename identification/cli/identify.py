@@ -46,29 +46,38 @@ def parser() -> argparse.ArgumentParser:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("logs", nargs="+", metavar="LOG", help="js2 log files (.mcap) of one session")
     p.add_argument("-o", "--outdir", required=True, help="output folder (created if needed)")
-    p.add_argument("--method", choices=["mixed", "simultaneous"], default="mixed",
-                   help="which estimate becomes the model (default: mixed; both are always computed when possible)")
+    p.add_argument("--method", choices=["auto", "mixed", "simultaneous"], default="auto",
+                   help="which estimate becomes the model (default auto: mixed when the logs hold static and velocity "
+                        "trials, else simultaneous; both are always computed when possible)")
     p.add_argument("--validate", nargs="*", default=[], metavar="LOG",
                    help="extra log(s) used only for validation")
-    p.add_argument("--fit-trials", default="acceleration",
-                   help="comma-separated trial names whose data fit the inertial parameters (default: acceleration; "
-                        "'all' = every sample, for logs without trial events)")
+    p.add_argument("--fit-trials", default=None,
+                   help="comma-separated trial names whose data fit the inertial parameters (default: acceleration "
+                        "if present, else excitation, else 'all' = every sample)")
     p.add_argument("--validation-trials", default="validation",
                    help="comma-separated trial names held out for validation (default: validation); without any, "
                         "the last --holdout of the fitting data is held out")
     p.add_argument("--holdout", type=float, default=0.25, help="held-out fraction when there is no validation data")
-    p.add_argument("--fc-velocity", type=float, default=50.0, help="velocity filter cut-off, Hz (paper: 50)")
-    p.add_argument("--fc-acceleration", type=float, default=7.0,
-                   help="acceleration and torque filter cut-off, Hz (paper: 7)")
+    p.add_argument("--fc-velocity", type=float, default=None,
+                   help="velocity filter cut-off, Hz (default: the paper's 50 where the sample rate allows, else "
+                        "0.8 x Nyquist)")
+    p.add_argument("--fc-acceleration", type=float, default=None,
+                   help="acceleration and torque filter cut-off, Hz (default: the paper's 7, raised to 2 x the "
+                        "motion bandwidth for fast motions, below the velocity cut-off)")
     p.add_argument("--iterations", type=int, default=35000,
                    help="RLS iterations (samples), 0 = all (paper: about 35,000)")
-    p.add_argument("--offsets", action="store_true", help="add a constant torque offset per axis to the model")
+    p.add_argument("--offsets", action=argparse.BooleanOptionalAction, default=None,
+                   help="a constant torque offset per axis (sensor or current bias) in the model (default: tried by "
+                        "the simultaneous method and kept if cross-validation on the fit data prefers it)")
+    p.add_argument("--sqrt-viscous", action=argparse.BooleanOptionalAction, default=None,
+                   help="a friction term Bs sgn(v) sqrt|v| per axis (default: tried by the simultaneous method and "
+                        "kept if cross-validation on the fit data prefers it)")
     p.add_argument("--fig3", default="J_4z,B_4,fc_4",
                    help="parameters plotted in Fig. 3 (paper's J_<i>z, or standard names such as Ja_2, B_4, fc_4, "
                         "Ixx_link4)")
-    p.add_argument("--prior-weight", type=float, default=1.0,
+    p.add_argument("--prior-weight", type=float, default=None,
                    help="how strongly the physically consistent model is pulled toward the URDF's inertials where "
-                        "the data are weak (default 1; 0 = data only)")
+                        "the data are weak (default: chosen by cross-validation on the fit data; 0 = data only)")
     p.add_argument("--max-cond", type=float, default=None, help="verdict threshold on the condition number")
     p.add_argument("--max-nrms", type=float, default=None, help="verdict threshold on validation NRMS per axis (0.1 = 10%%)")
     p.add_argument("--strict", action="store_true", help="exit 1 when the verdict fails")
@@ -87,11 +96,13 @@ def main(argv=None) -> int:
     try:
         opt = IdentifyOptions(
             method=args.method,
-            filters=FilterSettings(fc_velocity_hz=args.fc_velocity, fc_acceleration_hz=args.fc_acceleration),
+            filters=None if args.fc_velocity is None and args.fc_acceleration is None else
+            FilterSettings(fc_velocity_hz=args.fc_velocity, fc_acceleration_hz=args.fc_acceleration),
             n_iter=args.iterations or None,
-            fit_trials=tuple(t.strip() for t in args.fit_trials.split(",") if t.strip()),
+            fit_trials=None if args.fit_trials is None else
+            tuple(t.strip() for t in args.fit_trials.split(",") if t.strip()),
             validation_trials=tuple(t.strip() for t in args.validation_trials.split(",") if t.strip()),
-            holdout=args.holdout, offsets=args.offsets,
+            holdout=args.holdout, offsets=args.offsets, sqrt_viscous=args.sqrt_viscous,
             fig3=tuple(t.strip() for t in args.fig3.split(",") if t.strip()),
             progress=not args.quiet, validate_paths=tuple(args.validate), prior_weight=args.prior_weight)
         ident = identify(args.logs, opt)
@@ -145,17 +156,26 @@ def summary(ident, v, out, report: bool = True) -> str:
     ja, _, alone = ident.motor_inertia()
     lines = [f"method: {ident.chosen}   base parameters: {ident.bp.n}   condition number: {ident.condition_number:.3g}"
              f"   fit samples: {ident.n_fit_samples}"]
-    lines.append(f"{'axis':>6} {'f_s':>10} {'f_c':>10} {'B':>10} {'J_a':>10} {'val RMS':>10} {'NRMS':>7}")
+    val = ident.validation
+    base = val.get("baseline")
+    lines.append(f"{'axis':>6} {'f_s':>10} {'f_c':>10} {'B':>10} {'J_a':>10} {'val RMS':>10} {'NRMS':>7}"
+                 + (f" {'OLS RMS':>10}" if base else ""))
     for k, j in enumerate(ident.arm.joints):
         lines.append(f"{j:>6} {_g(ident.friction_static[k])} {_g(ident.friction_coulomb[k])} "
                      f"{_g(ident.friction_viscous[k])} {_g(ja[k])}{'' if alone[k] else '*'} "
-                     f"{_g(ident.validation['rms'][k])} {100 * ident.validation['nrms'][k]:6.2f}%")
+                     f"{_g(val['rms'][k])} {100 * val['nrms'][k]:6.2f}%" + (f" {_g(base['rms'][k])}" if base else ""))
+    if base:
+        lines.append(f"validation ({val['samples']} held-out samples): relative torque error js2 "
+                     f"{100 * val['rel_overall']:.2f} %, textbook OLS baseline {100 * base['rel_overall']:.2f} % "
+                     f"(js2 / OLS = {val['rel_overall'] / base['rel_overall']:.2f})")
     if not all(alone):
         lines.append("  * J_a regrouped with link inertias (see model.yaml motor_inertia_separately_identified)")
     for n in ident.notes:
         lines.append(f"note: {n}")
     files = "model.yaml, robot_identified.urdf, " + ("report.html, " if report else "") + "verdict.json"
     lines.append(f"verdict: {'PASS' if v['pass'] else 'FAIL'}   ->  {out}/ {files}")
+    for r in v.get("reasons", []):
+        lines.append(f"  FAIL: {r}")
     return "\n".join(lines)
 
 
