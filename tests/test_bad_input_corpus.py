@@ -121,3 +121,22 @@ def test_diagnose_bad_model(tmp_path, capsys, good_log, kind):
     BAD_FILES[kind](p)
     rc = main([str(p), str(good_log), "-o", str(tmp_path / "d"), "-q"])
     _one_line(capsys, rc, "js2-diagnose", p)
+
+
+def test_identify_output_checked_first(tmp_path, capsys, good_log):
+    from identification.cli.identify import main
+    f = tmp_path / "afile"
+    f.write_text("x")
+    rc = main([str(good_log), "-o", str(f), "-q", "--no-report"])
+    assert "is a file" in _one_line(capsys, rc, "js2-identify", f)
+
+
+def test_identify_error_on_a_cut_log_mentions_the_cut(tmp_path, capsys, good_log):
+    """The trial the pipeline needs was in the part a killed writer lost: the error says the log was cut."""
+    from identification.cli.identify import main
+    data = Path(good_log).read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 8])
+    rc = main([str(cut), "-o", str(tmp_path / "o"), "-q", "--no-report"])
+    line = _one_line(capsys, rc, "js2-identify", cut)
+    assert "truncated" in line and "lost part" in line, line

@@ -86,6 +86,19 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def check_outdir(path) -> None:
+    """Refuse, before any computation, an output folder that cannot be written (a file, an unwritable parent)."""
+    import os
+
+    from js2spec.errors import Js2Error
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise Js2Error(f"-o {out}: is a file; give a folder for the outputs")
+    probe = out if out.is_dir() else next((p for p in out.parents if p.exists()), Path("."))
+    if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
+        raise Js2Error(f"-o {out}: {probe} is not a writable folder; choose another -o")
+
+
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
     from js2spec.errors import Js2Error
@@ -94,6 +107,7 @@ def main(argv=None) -> int:
     from identification.signals import FilterSettings
 
     try:
+        check_outdir(args.outdir)
         opt = IdentifyOptions(
             method=args.method,
             filters=None if args.fc_velocity is None and args.fc_acceleration is None else
@@ -125,7 +139,10 @@ def main(argv=None) -> int:
 
             write_report(ident, out, v)
     except (Js2Error, IdentificationError) as exc:
-        print(f"js2-identify: error: {exc}", file=sys.stderr)
+        from js2spec.log import damage_notes
+        notes = damage_notes([*args.logs, *args.validate])
+        why = f" (note: {'; '.join(notes)}: what is missing may have been in the lost part)" if notes else ""
+        print(f"js2-identify: error: {exc}{why}", file=sys.stderr)
         return 2
     except ValueError as exc:
         print(f"js2-identify: error: {exc}", file=sys.stderr)
@@ -139,7 +156,7 @@ def main(argv=None) -> int:
     if not args.quiet:
         print(summary(ident, v, out, report=not args.no_report))
     for note in ident.notes:
-        if "truncated" in note:
+        if "recovered" in note or "repaired" in note:
             print(f"js2-identify: note: {note}", file=sys.stderr)
     if args.strict and not v["pass"]:
         print("js2-identify: verdict FAILED (see verdict.json)", file=sys.stderr)
