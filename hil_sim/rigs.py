@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 class DirectRig:
-    def __init__(self, robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0):
+    def __init__(self, robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0, cpu=None):
         from hil_sim.direct import DirectDriveGroup
         self.group = DirectDriveGroup(robot, cycle_hz=cycle_hz, seed=seed, faults=list(faults or ()))
         self.where = "in-process simulator, direct (no CAN)"
@@ -36,7 +36,7 @@ def direct(robot, **kw) -> DirectRig:
     return DirectRig(robot, **kw)
 
 
-def in_process(robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0):
+def in_process(robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0, cpu=None):
     from hil_sim.canopen_inprocess import InProcessCanopen
     rig = InProcessCanopen(robot, cycle_hz=cycle_hz, seed=seed, faults=list(faults or ()), realtime=realtime).start()
     rig.where = "in-process simulator on python-can's virtual bus"
@@ -48,7 +48,7 @@ class ProcessRig:
     The simulator's physics advances one period per SYNC (lock-step), so missed SYNCs cost the arm nothing but time;
     what the measurement sees is the master's scheduling and the transport."""
 
-    def __init__(self, robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0,
+    def __init__(self, robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0, cpu=None,
                  start_timeout_s: float = 30.0):
         self.robot = robot
         self.cycle_hz = float(cycle_hz or robot.drives.cycle_hz or 500.0)
@@ -57,6 +57,8 @@ class ProcessRig:
                "--cycle-hz", f"{self.cycle_hz:g}", "--seed", str(int(seed)), "--rt-priority", str(int(rt_priority))]
         for f in faults or ():
             cmd += ["--fault", str(f)]
+        if cpu is not None:
+            cmd += ["--cpu", str(int(cpu))]
         self.cmd = cmd
         self.start_timeout_s = start_timeout_s
         self.proc = None

@@ -92,6 +92,7 @@ class CanopenDriveGroup(DriveGroup):
         self._expect = np.ones(self.n, dtype=bool)   # drives whose TPDO the cycle waits for
         self._miss = np.zeros(self.n, dtype=int)
         self._done = threading.Event()
+        self._t_done = 0.0
         self._hb_time = [None] * self.n
         self._hb_state = [None] * self.n
         self._hb_reported = [False] * self.n
@@ -101,6 +102,7 @@ class CanopenDriveGroup(DriveGroup):
         self.missed = 0                 # real time: SYNCs sent later than one period after their deadline
         self.late_tpdos = 0             # TPDOs that arrived after their cycle was closed (dropped)
         self.sync_times: list[float] = []
+        self.round_trips: list[float] = []     # s from SYNC to the last TPDO of the cycle (nan: incomplete)
         self.keep_sync_times = False
         self._opened = False
         self.warnings: list[str] = []
@@ -294,6 +296,7 @@ class CanopenDriveGroup(DriveGroup):
             if self._expect[i]:
                 self._ngot += 1
                 if self._ngot >= self._nexpect:
+                    self._t_done = time.perf_counter()
                     self._done.set()
 
     def _on_heartbeat(self, i, state):
@@ -361,6 +364,8 @@ class CanopenDriveGroup(DriveGroup):
             if self.keep_sync_times:
                 self.sync_times.append(t_sync)
             self._wait_tpdos(self._next + self.dt * 0.9)
+            if self.keep_sync_times:
+                self.round_trips.append(self._t_done - t_sync if self._done.is_set() else float("nan"))
             t = t_sync - self._t0
         else:
             self._drain(drop_tpdo=True)

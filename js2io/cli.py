@@ -53,6 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rt-priority", type=int, default=0, metavar="N",
                    help="run the cycle loop with SCHED_FIFO priority N and lock its memory (Linux; root/CAP_SYS_NICE; "
                         "says so and stops when not permitted); 0 = off")
+    p.add_argument("--cpu", type=int, metavar="C",
+                   help="run the cycle loop on CPU C only (Linux); with --sim sim-process the simulator takes another")
     return p
 
 
@@ -93,6 +95,15 @@ def check_output(path: str, force: bool) -> None:
         raise Js2Error(f"-o {path}: the folder {folder} is not writable; choose another -o")
 
 
+def _other_cpu(cpu):
+    """A CPU for a simulator process beside a master pinned to `cpu` (None: no pinning)."""
+    import os
+    if cpu is None or not hasattr(os, "sched_getaffinity"):
+        return None
+    others = sorted(set(os.sched_getaffinity(0)) - {cpu}) or [cpu]
+    return others[0]
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from js2io.bus import console_logging
@@ -116,7 +127,7 @@ def _run(args) -> int:
 
     from .rt import realtime_setup
     robot = load_robot(args.robot)
-    sched = realtime_setup(args.rt_priority)
+    sched = realtime_setup(args.rt_priority, args.cpu)
     cfg_path = args.config or robot.trials_path
     if cfg_path is None:
         from .trials import default_trials_path
@@ -159,7 +170,7 @@ def _run(args) -> int:
         else:
             from .rigs import open_rig
             sim = open_rig(sim_name, robot, cycle_hz=cycle_hz, seed=args.seed, faults=args.sim_fault,
-                           realtime=args.realtime, rt_priority=args.rt_priority)
+                           realtime=args.realtime, rt_priority=args.rt_priority, cpu=_other_cpu(args.cpu))
             group, where = sim.group, sim.where
         print(f"js2-acquire: {robot.name}, trials {', '.join(names)} -> {args.output} ({where}, "
               f"{cycle_hz:g} Hz, {'real time' if args.realtime else 'lock-step'}, {sched})", file=sys.stderr)
