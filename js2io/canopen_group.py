@@ -52,8 +52,16 @@ class _ErrorFrameListener(can.Listener):
 class CanopenDriveGroup(DriveGroup):
     def __init__(self, drives, network: canopen.Network, eds_path, *, cycle_hz: float | None = None,
                  realtime: bool = False, lockstep_timeout_s: float = 0.5, master_node_id: int = 0x7F,
-                 sdo_timeout_s: float = 0.5, pump: bool = True):
+                 sdo_timeout_s: float = 0.5, pump: bool = True, sync: str = "auto"):
+        """sync (real time only): 'master' -- the cycle loop sends each SYNC at its deadline; 'periodic' -- python-can's
+        periodic send produces SYNC (kernel-timed by the broadcast manager on SocketCAN; a thread elsewhere) and the
+        loop only has to be ready before each one: a late loop costs a stale cycle, never a late SYNC;
+        'auto' -- periodic on SocketCAN, master otherwise."""
         super().__init__(drives, cycle_hz)
+        if sync not in ("auto", "master", "periodic"):
+            raise ValueError(f"sync={sync!r}: auto, master or periodic")
+        self.sync_mode = sync
+        self._sync_task = None
         self.network = network
         self.eds_path = str(eds_path)
         self.node_ids = [int(x) for x in (drives.node_ids or range(1, self.n + 1))]
@@ -344,7 +352,9 @@ class CanopenDriveGroup(DriveGroup):
         if self._nexpect == 0:
             self._done.set()
         now = time.perf_counter()
-        if self.realtime:
+        if self.realtime and self._periodic():
+            t = self._sync_periodic(now)
+        elif self.realtime:
             if self._next is None:
                 self._t0 = self._next = now
             else:
@@ -376,6 +386,45 @@ class CanopenDriveGroup(DriveGroup):
         self._miss = np.where(self._got, 0, self._miss + 1)
         return RawFeedback(self._status.copy(), self._counts.copy(), self._cur.copy(), self._got.copy(), t)
 
+    def _periodic(self) -> bool:
+        if self.sync_mode == "auto":
+            self.sync_mode = "periodic" if type(self.network.bus).__name__ == "SocketcanBus" else "master"
+        return self.sync_mode == "periodic"
+
+    def _sync_periodic(self, now: float) -> float:
+        """Cycle k with SYNC produced by python-can's periodic task started at t0: be ready just before t0 + k*dt
+        (late TPDOs of the previous SYNC dropped), then collect the TPDOs until 0.9 period after it."""
+        if self._sync_task is None:
+            self._drain(drop_tpdo=True)
+            self._t0 = self._next = time.perf_counter()
+            with self.network.send_lock:
+                self._sync_task = self.network.bus.send_periodic(self._sync_msg, self.dt)
+        else:
+            self._next += self.dt
+            margin = min(5e-5, 0.05 * self.dt)
+            delay = self._next - now
+            if delay > margin:
+                _sleep_until(self._next - margin)
+                self._drain(drop_tpdo=True)
+            elif delay >= -0.9 * self.dt:
+                # this SYNC is out (or about to be) before the command was: the drives apply it one SYNC later
+                # (counted); its answers may be queued already, so nothing is dropped
+                self.missed += 1
+            else:
+                # the loop was not back before this SYNC's answers were due: those SYNCs went out anyway (the drives
+                # applied the last command again); skip to the next one that is still ahead (counted)
+                skipped = int(-delay / self.dt) + 1
+                self.missed += skipped
+                self._next += skipped * self.dt
+                _sleep_until(self._next - margin)
+                self._drain(drop_tpdo=True)
+        if self.keep_sync_times:
+            self.sync_times.append(self._next)
+        self._wait_tpdos(self._next + self.dt * 0.9)
+        if self.keep_sync_times:
+            self.round_trips.append(self._t_done - self._next if self._done.is_set() else float("nan"))
+        return self._next - self._t0
+
     def _check_heartbeats(self) -> None:
         now = time.monotonic()
         lim = 3 * self.hb_ms / 1000.0
@@ -402,6 +451,14 @@ class CanopenDriveGroup(DriveGroup):
             if m != int(modes[i]):
                 raise Js2Error(f"node {self.node_ids[i]}: mode {modes[i]} not taken (0x6061 = {m})")
 
+    def stop_sync(self) -> None:
+        if self._sync_task is not None:
+            try:
+                self._sync_task.stop()
+            except Exception:   # noqa: BLE001 - the bus may be gone
+                pass
+            self._sync_task = None
+
     def stop_heartbeat(self) -> None:
         """Stop the master heartbeat producer (tests: the drives must quick-stop)."""
         if self._hb_task is not None:
@@ -409,6 +466,7 @@ class CanopenDriveGroup(DriveGroup):
             self._hb_task = None
 
     def close(self) -> None:
+        self.stop_sync()
         try:
             self.stop_heartbeat()
             if self.network.bus is not None and self._opened:

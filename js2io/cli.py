@@ -30,6 +30,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--realtime", action="store_true",
                    help="pace SYNC by the wall clock (needed for real drives); default: lock-step, SYNC as soon as "
                         "all drives answered (simulators only)")
+    p.add_argument("--sync", choices=["auto", "master", "periodic"], default="auto",
+                   help="real time: who produces SYNC -- master (the cycle loop, at each deadline), periodic (python-can's "
+                        "periodic send: kernel-timed on SocketCAN, a thread elsewhere), auto (periodic on SocketCAN)")
     g = p.add_argument_group("CAN bus (as python-can's tools take it; none given = in-process simulator)")
     g.add_argument("-i", "--interface", help="python-can interface: socketcan, socketcand, slcan, pcan, virtual, ...")
     g.add_argument("-c", "--channel", help="channel, e.g. can0, /dev/ttyACM0")
@@ -172,6 +175,8 @@ def _run(args) -> int:
             sim = open_rig(sim_name, robot, cycle_hz=cycle_hz, seed=args.seed, faults=args.sim_fault,
                            realtime=args.realtime, rt_priority=args.rt_priority, cpu=_other_cpu(args.cpu))
             group, where = sim.group, sim.where
+        if hasattr(group, "sync_mode"):
+            group.sync_mode = args.sync
         print(f"js2-acquire: {robot.name}, trials {', '.join(names)} -> {args.output} ({where}, "
               f"{cycle_hz:g} Hz, {'real time' if args.realtime else 'lock-step'}, {sched})", file=sys.stderr)
         group.open()

@@ -57,6 +57,9 @@ def make_trial(robot, seconds, cycle_hz):
     return FourierTrial(TrialContext(robot.drives, 1.0 / cycle_hz, cfg))
 
 
+SYNC = "auto"
+
+
 def run(make_rig, robot, seconds, cycle_hz):
     """One session (the master's default safety settings, as js2-acquire runs it) on a fresh rig."""
     from js2io.session import Session, open_log
@@ -65,6 +68,7 @@ def run(make_rig, robot, seconds, cycle_hz):
         try:
             group = rig.group
             group.keep_sync_times = True
+            group.sync_mode = SYNC
             group.open()
             w = open_log(Path(d) / "bench.mcap", robot, group)
             trial = make_trial(robot, seconds, cycle_hz)
@@ -226,10 +230,13 @@ def main() -> int:
                     help="SCHED_FIFO priority for master and simulator, memory locked (Linux, root/CAP_SYS_NICE); 0 = off")
     ap.add_argument("--cpu", type=int, metavar="C",
                     help="pin the master to CPU C and the socketcand simulator process to another (Linux)")
+    ap.add_argument("--sync", choices=["auto", "master", "periodic"], default="auto",
+                    help="who produces SYNC (as js2-acquire --sync; auto = master on these transports)")
     ap.add_argument("--baseline-s", type=float, default=5.0, help="length of the timer baseline (0 = skip)")
     args = ap.parse_args()
-    global RT_PRIO, SIM_CPU
+    global RT_PRIO, SIM_CPU, SYNC
     RT_PRIO = args.rt_priority
+    SYNC = args.sync
     from js2io.rt import realtime_setup
     from js2spec.errors import Js2Error
     if args.cpu is not None:
@@ -275,7 +282,7 @@ def main() -> int:
     try:
         time.sleep(1.0 if load else 0.0)     # let the load reach the scheduler before measuring
         print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} (1 min; includes other work on "
-              f"it), --load {args.load} (background CPU-bound processes); python {sys.version.split()[0]}; {sched}")
+              f"it), --load {args.load} (background CPU-bound processes); SYNC {args.sync}; python {sys.version.split()[0]}; {sched}")
         if args.baseline_s > 0:
             print(timer_baseline(rate, args.baseline_s), flush=True)
         for tr in transports:
