@@ -190,9 +190,22 @@ def timer_baseline(rate, seconds) -> str:
             f"{int((late > 0.9 * dt * 1e6).sum())} of {n} wake-ups later than 0.9 period")
 
 
+def _normal_scheduling() -> None:
+    """In a load process, before exec: never inherit the bench's SCHED_FIFO or CPU pinning (two real-time busy
+    loops would take both cores from everything, the bench included)."""
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    os.sched_setaffinity(0, range(os.cpu_count()))
+
+
 def start_load(n: int) -> list:
-    """n CPU-bound background processes at normal priority (what else runs on a cell's PC)."""
-    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+    """n CPU-bound background processes at normal priority on any CPU (what else runs on a cell's PC)."""
+    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"], preexec_fn=_normal_scheduling)
+             for _ in range(n)]
+    for p in procs:
+        if os.sched_getscheduler(p.pid) != os.SCHED_OTHER:
+            stop_load(procs)
+            raise RuntimeError("a load process kept real-time scheduling; refusing to run")
+    return procs
 
 
 def stop_load(procs) -> None:
@@ -282,7 +295,8 @@ def main() -> int:
     try:
         time.sleep(1.0 if load else 0.0)     # let the load reach the scheduler before measuring
         print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} (1 min; includes other work on "
-              f"it), --load {args.load} (background CPU-bound processes); SYNC {args.sync}; python {sys.version.split()[0]}; {sched}")
+              f"it), --load {args.load} (background CPU-bound processes, normal scheduling); SYNC {args.sync}; python {sys.version.split()[0]}; {sched}",
+              flush=True)
         if args.baseline_s > 0:
             print(timer_baseline(rate, args.baseline_s), flush=True)
         for tr in transports:

@@ -192,3 +192,16 @@ def test_auto_sync_is_master_off_socketcan():
     from hil_sim.canopen_inprocess import InProcessCanopen
     with InProcessCanopen(ROBOT, cycle_hz=100, realtime=True) as rig:
         assert rig.group.sync_mode == "auto" and not rig.group._periodic() and rig.group.sync_mode == "master"
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="SCHED_FIFO needs root here")
+def test_bench_load_never_inherits_real_time_scheduling():
+    """--load beside --rt-priority: the busy loops run at normal priority on any CPU (real-time busy loops would
+    take both cores from everything)."""
+    code = ("import os, sys; sys.path.insert(0, 'scripts'); import bench_acquire as b\n"
+            "os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(5)); os.sched_setaffinity(0, {0})\n"
+            "p = b.start_load(1)\n"
+            "print(os.sched_getscheduler(p[0].pid) == os.SCHED_OTHER, sorted(os.sched_getaffinity(p[0].pid)))\n"
+            "b.stop_load(p)\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.stdout.strip() == f"True {list(range(os.cpu_count()))}", out.stdout + out.stderr
