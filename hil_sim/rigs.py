@@ -43,6 +43,15 @@ def in_process(robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_pr
     return rig
 
 
+def _end_with_parent() -> None:
+    """In the child, before exec (Linux): SIGTERM when the master's process dies, however it dies."""
+    try:
+        import ctypes
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)    # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 class ProcessRig:
     """js2-sim started as a child process (its own interpreter, its own GIL), the master connected over socketcand.
     The simulator's physics advances one period per SYNC (lock-step), so missed SYNCs cost the arm nothing but time;
@@ -73,7 +82,8 @@ class ProcessRig:
         from js2io.bus import open_bus
         from js2io.canopen_group import CanopenDriveGroup
         self.proc = subprocess.Popen(self.cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                     cwd=ROOT, start_new_session=True)   # Ctrl-C reaches the master only
+                                     cwd=ROOT, start_new_session=True,   # Ctrl-C reaches the master only
+                                     preexec_fn=_end_with_parent)
         deadline = time.monotonic() + self.start_timeout_s
         while self.port is None and time.monotonic() < deadline:
             line = self.proc.stdout.readline()

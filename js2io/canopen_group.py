@@ -16,6 +16,7 @@ the master watches theirs (canopen has no consumer timeout, so this class does i
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import time
 
@@ -62,6 +63,7 @@ class CanopenDriveGroup(DriveGroup):
             raise ValueError(f"sync={sync!r}: auto, master or periodic")
         self.sync_mode = sync
         self._sync_task = None
+        self._spin = None       # set when the loop starts (the scheduling class is chosen before)
         self.network = network
         self.eds_path = str(eds_path)
         self.node_ids = [int(x) for x in (drives.node_ids or range(1, self.n + 1))]
@@ -351,6 +353,8 @@ class CanopenDriveGroup(DriveGroup):
         self._done.clear()
         if self._nexpect == 0:
             self._done.set()
+        if self._spin is None:
+            self._spin = _spin_s()
         now = time.perf_counter()
         if self.realtime and self._periodic():
             t = self._sync_periodic(now)
@@ -361,7 +365,7 @@ class CanopenDriveGroup(DriveGroup):
                 self._next += self.dt
                 delay = self._next - now
                 if delay > 0:
-                    _sleep_until(self._next)
+                    _sleep_until(self._next, self._spin)
                 elif delay < -self.dt:
                     # overrun by more than a period: skip the lost deadlines (counted) and re-anchor, rather than
                     # a catch-up burst of SYNCs that the drives cannot answer in time
@@ -404,7 +408,7 @@ class CanopenDriveGroup(DriveGroup):
             margin = min(5e-5, 0.05 * self.dt)
             delay = self._next - now
             if delay > margin:
-                _sleep_until(self._next - margin)
+                _sleep_until(self._next - margin, self._spin)
                 self._drain(drop_tpdo=True)
             elif delay >= -0.9 * self.dt:
                 # this SYNC is out (or about to be) before the command was: the drives apply it one SYNC later
@@ -416,7 +420,7 @@ class CanopenDriveGroup(DriveGroup):
                 skipped = int(-delay / self.dt) + 1
                 self.missed += skipped
                 self._next += skipped * self.dt
-                _sleep_until(self._next - margin)
+                _sleep_until(self._next - margin, self._spin)
                 self._drain(drop_tpdo=True)
         if self.keep_sync_times:
             self.sync_times.append(self._next)
@@ -480,11 +484,23 @@ def _emcy_name(code: int) -> str:
     return cia402.EMCY_NAMES.get(code, "error")
 
 
-def _sleep_until(t_target: float) -> None:
-    """Sleep to just before the deadline, then spin the last ~0.3 ms (time.sleep overshoots ~0.1 ms)."""
+SPIN_S = 0.0003     # normal scheduling: time.sleep overshoots ~0.1 ms
+SPIN_FIFO_S = 0.0001   # SCHED_FIFO wakes within ~10 us: spin less, leave the core to the others
+
+
+def _spin_s() -> float:
+    try:
+        return SPIN_FIFO_S if os.sched_getscheduler(0) == os.SCHED_FIFO else SPIN_S
+    except (AttributeError, OSError):
+        return SPIN_S
+
+
+def _sleep_until(t_target: float, spin_s: float | None = None) -> None:
+    """Sleep to just before the deadline, then spin the last `spin_s` (default: by the scheduling class)."""
+    spin = _spin_s() if spin_s is None else spin_s
     while True:
         d = t_target - time.perf_counter()
         if d <= 0:
             return
-        if d > 0.0004:
-            time.sleep(d - 0.0003)
+        if d > spin + 0.0001:
+            time.sleep(d - spin)
