@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 class DirectRig:
-    def __init__(self, robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0):
+    def __init__(self, robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0, cpu=None):
         from hil_sim.direct import DirectDriveGroup
         self.group = DirectDriveGroup(robot, cycle_hz=cycle_hz, seed=seed, faults=list(faults or ()))
         self.where = "in-process simulator, direct (no CAN)"
@@ -36,11 +36,20 @@ def direct(robot, **kw) -> DirectRig:
     return DirectRig(robot, **kw)
 
 
-def in_process(robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0):
+def in_process(robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0, cpu=None):
     from hil_sim.canopen_inprocess import InProcessCanopen
     rig = InProcessCanopen(robot, cycle_hz=cycle_hz, seed=seed, faults=list(faults or ()), realtime=realtime).start()
     rig.where = "in-process simulator on python-can's virtual bus"
     return rig
+
+
+def _end_with_parent() -> None:
+    """In the child, before exec (Linux): SIGTERM when the master's process dies, however it dies."""
+    try:
+        import ctypes
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)    # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
 
 
 class ProcessRig:
@@ -48,7 +57,7 @@ class ProcessRig:
     The simulator's physics advances one period per SYNC (lock-step), so missed SYNCs cost the arm nothing but time;
     what the measurement sees is the master's scheduling and the transport."""
 
-    def __init__(self, robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0,
+    def __init__(self, robot, *, cycle_hz=None, seed=0, faults=(), realtime=False, rt_priority=0, cpu=None,
                  start_timeout_s: float = 30.0):
         self.robot = robot
         self.cycle_hz = float(cycle_hz or robot.drives.cycle_hz or 500.0)
@@ -57,6 +66,8 @@ class ProcessRig:
                "--cycle-hz", f"{self.cycle_hz:g}", "--seed", str(int(seed)), "--rt-priority", str(int(rt_priority))]
         for f in faults or ():
             cmd += ["--fault", str(f)]
+        if cpu is not None:
+            cmd += ["--cpu", str(int(cpu))]
         self.cmd = cmd
         self.start_timeout_s = start_timeout_s
         self.proc = None
@@ -71,7 +82,8 @@ class ProcessRig:
         from js2io.bus import open_bus
         from js2io.canopen_group import CanopenDriveGroup
         self.proc = subprocess.Popen(self.cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                     cwd=ROOT, start_new_session=True)   # Ctrl-C reaches the master only
+                                     cwd=ROOT, start_new_session=True,   # Ctrl-C reaches the master only
+                                     preexec_fn=_end_with_parent)
         deadline = time.monotonic() + self.start_timeout_s
         while self.port is None and time.monotonic() < deadline:
             line = self.proc.stdout.readline()

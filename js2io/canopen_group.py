@@ -16,6 +16,7 @@ the master watches theirs (canopen has no consumer timeout, so this class does i
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import time
 
@@ -52,8 +53,17 @@ class _ErrorFrameListener(can.Listener):
 class CanopenDriveGroup(DriveGroup):
     def __init__(self, drives, network: canopen.Network, eds_path, *, cycle_hz: float | None = None,
                  realtime: bool = False, lockstep_timeout_s: float = 0.5, master_node_id: int = 0x7F,
-                 sdo_timeout_s: float = 0.5, pump: bool = True):
+                 sdo_timeout_s: float = 0.5, pump: bool = True, sync: str = "auto"):
+        """sync (real time only): 'master' -- the cycle loop sends each SYNC at its deadline; 'periodic' -- python-can's
+        periodic send produces SYNC (kernel-timed by the broadcast manager on SocketCAN; a thread elsewhere) and the
+        loop only has to be ready before each one: a late loop costs a stale cycle, never a late SYNC;
+        'auto' -- periodic on SocketCAN, master otherwise."""
         super().__init__(drives, cycle_hz)
+        if sync not in ("auto", "master", "periodic"):
+            raise ValueError(f"sync={sync!r}: auto, master or periodic")
+        self.sync_mode = sync
+        self._sync_task = None
+        self._spin = None       # set when the loop starts (the scheduling class is chosen before)
         self.network = network
         self.eds_path = str(eds_path)
         self.node_ids = [int(x) for x in (drives.node_ids or range(1, self.n + 1))]
@@ -92,6 +102,7 @@ class CanopenDriveGroup(DriveGroup):
         self._expect = np.ones(self.n, dtype=bool)   # drives whose TPDO the cycle waits for
         self._miss = np.zeros(self.n, dtype=int)
         self._done = threading.Event()
+        self._t_done = 0.0
         self._hb_time = [None] * self.n
         self._hb_state = [None] * self.n
         self._hb_reported = [False] * self.n
@@ -101,6 +112,7 @@ class CanopenDriveGroup(DriveGroup):
         self.missed = 0                 # real time: SYNCs sent later than one period after their deadline
         self.late_tpdos = 0             # TPDOs that arrived after their cycle was closed (dropped)
         self.sync_times: list[float] = []
+        self.round_trips: list[float] = []     # s from SYNC to the last TPDO of the cycle (nan: incomplete)
         self.keep_sync_times = False
         self._opened = False
         self.warnings: list[str] = []
@@ -294,6 +306,7 @@ class CanopenDriveGroup(DriveGroup):
             if self._expect[i]:
                 self._ngot += 1
                 if self._ngot >= self._nexpect:
+                    self._t_done = time.perf_counter()
                     self._done.set()
 
     def _on_heartbeat(self, i, state):
@@ -340,15 +353,19 @@ class CanopenDriveGroup(DriveGroup):
         self._done.clear()
         if self._nexpect == 0:
             self._done.set()
+        if self._spin is None:
+            self._spin = _spin_s()
         now = time.perf_counter()
-        if self.realtime:
+        if self.realtime and self._periodic():
+            t = self._sync_periodic(now)
+        elif self.realtime:
             if self._next is None:
                 self._t0 = self._next = now
             else:
                 self._next += self.dt
                 delay = self._next - now
                 if delay > 0:
-                    _sleep_until(self._next)
+                    _sleep_until(self._next, self._spin)
                 elif delay < -self.dt:
                     # overrun by more than a period: skip the lost deadlines (counted) and re-anchor, rather than
                     # a catch-up burst of SYNCs that the drives cannot answer in time
@@ -361,6 +378,8 @@ class CanopenDriveGroup(DriveGroup):
             if self.keep_sync_times:
                 self.sync_times.append(t_sync)
             self._wait_tpdos(self._next + self.dt * 0.9)
+            if self.keep_sync_times:
+                self.round_trips.append(self._t_done - t_sync if self._done.is_set() else float("nan"))
             t = t_sync - self._t0
         else:
             self._drain(drop_tpdo=True)
@@ -370,6 +389,45 @@ class CanopenDriveGroup(DriveGroup):
         self._check_heartbeats()
         self._miss = np.where(self._got, 0, self._miss + 1)
         return RawFeedback(self._status.copy(), self._counts.copy(), self._cur.copy(), self._got.copy(), t)
+
+    def _periodic(self) -> bool:
+        if self.sync_mode == "auto":
+            self.sync_mode = "periodic" if type(self.network.bus).__name__ == "SocketcanBus" else "master"
+        return self.sync_mode == "periodic"
+
+    def _sync_periodic(self, now: float) -> float:
+        """Cycle k with SYNC produced by python-can's periodic task started at t0: be ready just before t0 + k*dt
+        (late TPDOs of the previous SYNC dropped), then collect the TPDOs until 0.9 period after it."""
+        if self._sync_task is None:
+            self._drain(drop_tpdo=True)
+            self._t0 = self._next = time.perf_counter()
+            with self.network.send_lock:
+                self._sync_task = self.network.bus.send_periodic(self._sync_msg, self.dt)
+        else:
+            self._next += self.dt
+            margin = min(5e-5, 0.05 * self.dt)
+            delay = self._next - now
+            if delay > margin:
+                _sleep_until(self._next - margin, self._spin)
+                self._drain(drop_tpdo=True)
+            elif delay >= -0.9 * self.dt:
+                # this SYNC is out (or about to be) before the command was: the drives apply it one SYNC later
+                # (counted); its answers may be queued already, so nothing is dropped
+                self.missed += 1
+            else:
+                # the loop was not back before this SYNC's answers were due: those SYNCs went out anyway (the drives
+                # applied the last command again); skip to the next one that is still ahead (counted)
+                skipped = int(-delay / self.dt) + 1
+                self.missed += skipped
+                self._next += skipped * self.dt
+                _sleep_until(self._next - margin, self._spin)
+                self._drain(drop_tpdo=True)
+        if self.keep_sync_times:
+            self.sync_times.append(self._next)
+        self._wait_tpdos(self._next + self.dt * 0.9)
+        if self.keep_sync_times:
+            self.round_trips.append(self._t_done - self._next if self._done.is_set() else float("nan"))
+        return self._next - self._t0
 
     def _check_heartbeats(self) -> None:
         now = time.monotonic()
@@ -397,6 +455,14 @@ class CanopenDriveGroup(DriveGroup):
             if m != int(modes[i]):
                 raise Js2Error(f"node {self.node_ids[i]}: mode {modes[i]} not taken (0x6061 = {m})")
 
+    def stop_sync(self) -> None:
+        if self._sync_task is not None:
+            try:
+                self._sync_task.stop()
+            except Exception:   # noqa: BLE001 - the bus may be gone
+                pass
+            self._sync_task = None
+
     def stop_heartbeat(self) -> None:
         """Stop the master heartbeat producer (tests: the drives must quick-stop)."""
         if self._hb_task is not None:
@@ -404,6 +470,7 @@ class CanopenDriveGroup(DriveGroup):
             self._hb_task = None
 
     def close(self) -> None:
+        self.stop_sync()
         try:
             self.stop_heartbeat()
             if self.network.bus is not None and self._opened:
@@ -413,11 +480,23 @@ class CanopenDriveGroup(DriveGroup):
         self._opened = False
 
 
-def _sleep_until(t_target: float) -> None:
-    """Sleep to just before the deadline, then spin the last ~0.3 ms (time.sleep overshoots ~0.1 ms)."""
+SPIN_S = 0.0003     # normal scheduling: time.sleep overshoots ~0.1 ms
+SPIN_FIFO_S = 0.0001   # SCHED_FIFO wakes within ~10 us: spin less, leave the core to the others
+
+
+def _spin_s() -> float:
+    try:
+        return SPIN_FIFO_S if os.sched_getscheduler(0) == os.SCHED_FIFO else SPIN_S
+    except (AttributeError, OSError):
+        return SPIN_S
+
+
+def _sleep_until(t_target: float, spin_s: float | None = None) -> None:
+    """Sleep to just before the deadline, then spin the last `spin_s` (default: by the scheduling class)."""
+    spin = _spin_s() if spin_s is None else spin_s
     while True:
         d = t_target - time.perf_counter()
         if d <= 0:
             return
-        if d > 0.0004:
-            time.sleep(d - 0.0003)
+        if d > spin + 0.0001:
+            time.sleep(d - spin)

@@ -30,6 +30,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--realtime", action="store_true",
                    help="pace SYNC by the wall clock (needed for real drives); default: lock-step, SYNC as soon as "
                         "all drives answered (simulators only)")
+    p.add_argument("--sync", choices=["auto", "master", "periodic"], default="auto",
+                   help="real time: who produces SYNC -- master (the cycle loop, at each deadline), periodic (python-can's "
+                        "periodic send: kernel-timed on SocketCAN, a thread elsewhere), auto (periodic on SocketCAN)")
     g = p.add_argument_group("CAN bus (as python-can's tools take it; none given = in-process simulator)")
     g.add_argument("-i", "--interface", help="python-can interface: socketcan, socketcand, slcan, pcan, virtual, ...")
     g.add_argument("-c", "--channel", help="channel, e.g. can0, /dev/ttyACM0")
@@ -53,6 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rt-priority", type=int, default=0, metavar="N",
                    help="run the cycle loop with SCHED_FIFO priority N and lock its memory (Linux; root/CAP_SYS_NICE; "
                         "says so and stops when not permitted); 0 = off")
+    p.add_argument("--cpu", type=int, metavar="C",
+                   help="run the cycle loop on CPU C only (Linux); with --sim sim-process the simulator takes another")
     return p
 
 
@@ -109,6 +114,15 @@ def check_output(path: str, force: bool) -> None:
         raise Js2Error(f"-o {path}: the folder {folder} is not writable; choose another -o")
 
 
+def _other_cpu(cpu):
+    """A CPU for a simulator process beside a master pinned to `cpu` (None: no pinning)."""
+    import os
+    if cpu is None or not hasattr(os, "sched_getaffinity"):
+        return None
+    others = sorted(set(os.sched_getaffinity(0)) - {cpu}) or [cpu]
+    return others[0]
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from js2io.bus import console_logging
@@ -132,7 +146,7 @@ def _run(args) -> int:
 
     from .rt import realtime_setup
     robot = load_robot(args.robot)
-    sched = realtime_setup(args.rt_priority)
+    sched = realtime_setup(args.rt_priority, args.cpu)
     cfg_path = args.config or robot.trials_path
     if cfg_path is None:
         from .trials import default_trials_path
@@ -176,8 +190,10 @@ def _run(args) -> int:
         else:
             from .rigs import open_rig
             sim = open_rig(sim_name, robot, cycle_hz=cycle_hz, seed=args.seed, faults=args.sim_fault,
-                           realtime=args.realtime, rt_priority=args.rt_priority)
+                           realtime=args.realtime, rt_priority=args.rt_priority, cpu=_other_cpu(args.cpu))
             group, where = sim.group, sim.where
+        if hasattr(group, "sync_mode"):
+            group.sync_mode = args.sync
         print(f"js2-acquire: {robot.name}, trials {', '.join(names)} -> {args.output} ({where}, "
               f"{cycle_hz:g} Hz, {'real time' if args.realtime else 'lock-step'}, {sched})", file=sys.stderr)
         group.open()

@@ -21,6 +21,18 @@ _FB, _CMD, _CALL = 1, 2, 3
 _HAS_CUR, _HAS_STATUS, _HAS_VALID, _HAS_VEL = 1, 2, 4, 8
 
 
+def _below_the_cycle() -> None:
+    """In a SCHED_FIFO process, run this thread one real-time priority below the cycle: it still preempts ordinary
+    processes (so it never sits preempted while holding the GIL the cycle waits for), the cycle preempts it."""
+    import os
+    try:
+        if os.sched_getscheduler(0) == os.SCHED_FIFO:
+            prio = os.sched_getparam(0).sched_priority
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(max(1, prio - 1)))
+    except (AttributeError, OSError):
+        pass
+
+
 class RingLog:
     def __init__(self, writer, capacity: int = 8192, describe=None, poll_s: float = 0.004):
         self.writer = writer
@@ -142,6 +154,7 @@ class RingLog:
             self.tail += 1
 
     def _run(self) -> None:
+        _below_the_cycle()
         while True:
             stopping = self._stop.is_set()
             self._drain()

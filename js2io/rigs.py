@@ -7,7 +7,7 @@ entry-point group `js2.drive_groups`:
     [project.entry-points."js2.drive_groups"]
     sim = "hil_sim.rigs:in_process"
 
-The entry point is a factory `factory(robot, *, cycle_hz, seed, faults, realtime, rt_priority) -> rig` returning a
+The entry point is a factory `factory(robot, *, cycle_hz, seed, faults, realtime, rt_priority, cpu) -> rig` returning a
 started rig with `group` (a `js2io.group.DriveGroup`, not yet opened), `where` (one line for the console) and
 `close()`. js2-acquire takes `--sim NAME`; this project's own (hil_sim) are `sim`, `sim-direct` and `sim-process`.
 """

@@ -42,9 +42,24 @@ def lock_memory() -> str:
     return "memory locked"
 
 
-def realtime_setup(priority: int) -> str:
-    """--rt-priority N: SCHED_FIFO N and memory locked; 0: nothing. Returns one line for the console."""
+def pin_cpu(cpu: int | None) -> str:
+    """Run this process (and the threads it starts) on one CPU only."""
+    if cpu is None:
+        return ""
+    if not hasattr(os, "sched_setaffinity"):
+        raise Js2Error("--cpu needs Linux (sched_setaffinity); drop the option on this system")
+    try:
+        os.sched_setaffinity(0, {cpu})
+    except (OSError, ValueError) as e:
+        raise Js2Error(f"--cpu {cpu}: not possible here ({e}); the machine has CPUs 0..{os.cpu_count() - 1} "
+                       f"(a container may allow fewer); choose another or drop the option") from None
+    return f", pinned to CPU {cpu}"
+
+
+def realtime_setup(priority: int, cpu: int | None = None) -> str:
+    """--rt-priority N: SCHED_FIFO N and memory locked; 0: nothing. --cpu C: pinned to CPU C. Returns one line."""
+    pinned = pin_cpu(cpu)
     if priority <= 0:
-        return "normal scheduling (no --rt-priority)"
+        return "normal scheduling (no --rt-priority)" + pinned
     who = "root" if hasattr(os, "geteuid") and os.geteuid() == 0 else f"uid {os.getuid()}"
-    return f"{set_realtime_priority(priority)}, {lock_memory()} (permitted: running as {who})"
+    return f"{set_realtime_priority(priority)}, {lock_memory()} (permitted: running as {who}){pinned}"

@@ -13,7 +13,8 @@ Stale feedback (a cycle in which some drive's TPDO did not come back in time): t
 command it sent for at most `stale_hold_cycles` cycles, and only while every joint's last fresh position is farther
 than `stale_guard` (fraction of the envelope span) from the envelope; otherwise, and after that, it sends zero torque
 (zero velocity in CSV). The envelope check then runs on the best estimate of where a stale joint may be: its last
-fresh position moved on at its last fresh velocity for the age of that reading (used to trip, never to command).
+fresh position moved on at its last fresh velocity for as many periods as it has been stale (used to trip, never
+to command).
 The drives' software limits (0x607D) lie outside the envelope by a margin (`group.motor_position_limits`), so the
 master's quick stop comes first. Stale cycles are counted per drive (summary, `js2_acquire_summary` metadata) and a
 burst that outlasts the hold is logged as a `fault` event.
@@ -120,6 +121,7 @@ class SessionResult:
     longest_stale: list = field(default_factory=list)  # longest run of consecutive stale cycles per drive
     stale_held: int = 0                                # stale cycles that repeated the last command
     stale_zeroed: int = 0                              # stale cycles that sent zero torque instead
+    missed: int | None = None                          # real time: SYNC deadlines overrun by > 1 period (skipped)
     trials: list = field(default_factory=list)        # (name, status, summary)
     aborted: bool = False
     reason: str | None = None
@@ -137,6 +139,8 @@ class SessionResult:
                  f"lost TPDOs per drive: {self.lost} ({self.invalid_cycles} cycles with an invalid reading)",
                  f"stale cycles per drive: {self.stale} (longest run {self.longest_stale}; in trials "
                  f"{self.stale_held} held the last command, {self.stale_zeroed} sent zero torque)"]
+        if self.missed is not None:
+            lines.append(f"real time: {self.missed} SYNC deadlines missed (overrun by more than a period, skipped)")
         for name, status, summ in self.trials:
             extra = ", ".join(f"{k} {v}" for k, v in (summ or {}).items())
             lines.append(f"  {name:<12} {status}{': ' + extra if extra else ''}")
@@ -261,10 +265,12 @@ class Session:
 
     def motor_position_estimate(self, fb: Feedback) -> np.ndarray:
         """Where each motor may be now: the fresh reading, or for a stale drive its last fresh position moved on at its
-        last fresh velocity for the age of that reading. For the envelope check only, never for a command."""
+        last fresh velocity for as many periods as its feedback has been stale. For the envelope check only, never
+        for a command. (Counted in periods, not seconds since the reading: a stall of the master itself -- no SYNC
+        sent -- is not the drive's staleness; the next fresh reading shows where the arm went meanwhile.)"""
         if self._q_fresh is None or fb.valid.all():
             return fb.motor_position
-        age = np.maximum(fb.t - self._t_fresh, 0.0)
+        age = self.consec_lost * self.g.dt
         return np.where(fb.valid, fb.motor_position, self._q_fresh + self._v_fresh * age)
 
     def _stale_command(self) -> Command:
@@ -531,6 +537,8 @@ class Session:
         res.sim_time_s = self.fb.t if self.fb is not None else 0.0
         res.lost = self.g.lost.tolist()
         res.stale = self.stale.tolist()
+        if getattr(self.g, "realtime", False):
+            res.missed = int(getattr(self.g, "missed", 0))
         res.longest_stale = self.longest_stale.tolist()
         res.max_abs_command = [round(float(x), 5) for x in self.max_cmd]
         res.final_states = self._final_states()
@@ -540,6 +548,7 @@ class Session:
             "stale_cycles_per_drive": ",".join(map(str, res.stale)),
             "longest_stale_run_per_drive": ",".join(map(str, res.longest_stale)),
             "stale_commands_held": res.stale_held, "stale_commands_zero": res.stale_zeroed,
+            "missed_sync_deadlines": "" if res.missed is None else res.missed,
             "aborted": res.aborted, "reason": res.reason or "",
             "drives_disabled_confirmed": ",".join(str(bool(c)).lower() for c in self.confirmed),
             "warnings": " | ".join(res.warnings),

@@ -57,6 +57,9 @@ def make_trial(robot, seconds, cycle_hz):
     return FourierTrial(TrialContext(robot.drives, 1.0 / cycle_hz, cfg))
 
 
+SYNC = "auto"
+
+
 def run(make_rig, robot, seconds, cycle_hz):
     """One session (the master's default safety settings, as js2-acquire runs it) on a fresh rig."""
     from js2io.session import Session, open_log
@@ -65,6 +68,7 @@ def run(make_rig, robot, seconds, cycle_hz):
         try:
             group = rig.group
             group.keep_sync_times = True
+            group.sync_mode = SYNC
             group.open()
             w = open_log(Path(d) / "bench.mcap", robot, group)
             trial = make_trial(robot, seconds, cycle_hz)
@@ -78,6 +82,9 @@ def run(make_rig, robot, seconds, cycle_hz):
     out = {"cycles": res.cycles, "wall": wall, "rate": res.cycles / wall, "stale": res.invalid_cycles,
            "stale_per_drive": res.stale, "missed": getattr(group, "missed", 0), "aborted": res.aborted,
            "reason": res.reason, "sim": getattr(rig, "summary", lambda: "")()}
+    rt = np.asarray(getattr(group, "round_trips", []), dtype=float)
+    if rt.size and np.isfinite(rt).any():
+        out.update(rtt_p50=float(np.nanpercentile(rt, 50)) * 1e6, rtt_p99=float(np.nanpercentile(rt, 99)) * 1e6)
     if len(st) > 10:
         per = np.diff(st)
         jit = np.abs(per - 1.0 / cycle_hz) * 1e6
@@ -153,19 +160,52 @@ def virtual_rig(robot, cycle_hz, realtime, faults):
 
 
 RT_PRIO = 0
+SIM_CPU = None
 
 
 def socketcand_rig(robot, cycle_hz, realtime, faults):
     """js2-sim in its own process (its own interpreter), the master here over socketcand: as js2-acquire --realtime."""
     def f():
         from hil_sim.rigs import ProcessRig
-        return ProcessRig(robot, cycle_hz=cycle_hz, realtime=realtime, faults=faults, rt_priority=RT_PRIO).start()
+        return ProcessRig(robot, cycle_hz=cycle_hz, realtime=realtime, faults=faults, rt_priority=RT_PRIO,
+                          cpu=SIM_CPU).start()
     return f
 
 
+def timer_baseline(rate, seconds) -> str:
+    """The machine's own floor: an empty loop paced like the cycle (sleep to absolute deadlines, same scheduling, same
+    load): how late it wakes. A cycle cannot be more punctual than this."""
+    from js2io.canopen_group import _sleep_until
+    dt = 1.0 / rate
+    n = int(seconds * rate)
+    late = np.empty(n)
+    nxt = time.perf_counter()
+    for k in range(n):
+        nxt += dt
+        _sleep_until(nxt)
+        late[k] = time.perf_counter() - nxt
+    late *= 1e6
+    return (f"timer baseline (empty loop at {rate:g} Hz, {seconds:g} s, same scheduling and load): wake-up late "
+            f"p50 {np.percentile(late, 50):.0f} us, p99 {np.percentile(late, 99):.0f} us, max {late.max():.0f} us, "
+            f"{int((late > 0.9 * dt * 1e6).sum())} of {n} wake-ups later than 0.9 period")
+
+
+def _normal_scheduling() -> None:
+    """In a load process, before exec: never inherit the bench's SCHED_FIFO or CPU pinning (two real-time busy
+    loops would take both cores from everything, the bench included)."""
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    os.sched_setaffinity(0, range(os.cpu_count()))
+
+
 def start_load(n: int) -> list:
-    """n CPU-bound background processes at normal priority (what else runs on a cell's PC)."""
-    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+    """n CPU-bound background processes at normal priority on any CPU (what else runs on a cell's PC)."""
+    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"], preexec_fn=_normal_scheduling)
+             for _ in range(n)]
+    for p in procs:
+        if os.sched_getscheduler(p.pid) != os.SCHED_OTHER:
+            stop_load(procs)
+            raise RuntimeError("a load process kept real-time scheduling; refusing to run")
+    return procs
 
 
 def stop_load(procs) -> None:
@@ -182,7 +222,9 @@ def fmt_run(tr, r, rate, seconds, lim) -> str:
             f"({100 * r['rate'] / lim:.0f} % of the bus limit), cycles {r['cycles']}, "
             f"missed {r['missed']} ({100 * r['missed'] / n_exp:.2f} %), "
             f"stale {r['stale']} ({100 * r['stale'] / max(1, r['cycles']):.2f} %; per drive {r['stale_per_drive']}), "
-            f"SYNC jitter p50 {j[0]:.0f} us, p99 {j[1]:.0f} us, max {j[2]:.0f} us")
+            f"SYNC jitter p50 {j[0]:.0f} us, p99 {j[1]:.0f} us, max {j[2]:.0f} us"
+            + (f", TPDO round trip p50 {r['rtt_p50']:.0f} us, p99 {r['rtt_p99']:.0f} us (of complete cycles)"
+               if "rtt_p50" in r else ""))
     return head + (f"; ABORTED: {r['reason']}" if r["aborted"] else "; completed")
 
 
@@ -199,13 +241,22 @@ def main() -> int:
     ap.add_argument("--profile", action="store_true", help="cProfile the main thread in a lock-step run")
     ap.add_argument("--rt-priority", type=int, default=0, metavar="N",
                     help="SCHED_FIFO priority for master and simulator, memory locked (Linux, root/CAP_SYS_NICE); 0 = off")
+    ap.add_argument("--cpu", type=int, metavar="C",
+                    help="pin the master to CPU C and the socketcand simulator process to another (Linux)")
+    ap.add_argument("--sync", choices=["auto", "master", "periodic"], default="auto",
+                    help="who produces SYNC (as js2-acquire --sync; auto = master on these transports)")
+    ap.add_argument("--baseline-s", type=float, default=5.0, help="length of the timer baseline (0 = skip)")
     args = ap.parse_args()
-    global RT_PRIO
+    global RT_PRIO, SIM_CPU, SYNC
     RT_PRIO = args.rt_priority
+    SYNC = args.sync
     from js2io.rt import realtime_setup
     from js2spec.errors import Js2Error
+    if args.cpu is not None:
+        others = sorted(set(os.sched_getaffinity(0)) - {args.cpu})
+        SIM_CPU = others[0] if others else args.cpu
     try:
-        sched = realtime_setup(args.rt_priority)
+        sched = realtime_setup(args.rt_priority, args.cpu)
     except Js2Error as e:
         print(f"bench_acquire: error: {e}", file=sys.stderr)
         return 2
@@ -244,7 +295,10 @@ def main() -> int:
     try:
         time.sleep(1.0 if load else 0.0)     # let the load reach the scheduler before measuring
         print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} (1 min; includes other work on "
-              f"it), --load {args.load} (background CPU-bound processes); python {sys.version.split()[0]}; {sched}")
+              f"it), --load {args.load} (background CPU-bound processes, normal scheduling); SYNC {args.sync}; python {sys.version.split()[0]}; {sched}",
+              flush=True)
+        if args.baseline_s > 0:
+            print(timer_baseline(rate, args.baseline_s), flush=True)
         for tr in transports:
             if args.lockstep:
                 r = run(fac[tr](robot, rate, False, args.fault), robot, min(args.seconds, 10), rate)

@@ -160,3 +160,48 @@ def test_bench_exits_nonzero_when_a_run_aborted():
     assert out.returncode == 1, out.stdout + out.stderr
     assert "ABORTED: EMCY node 3" in out.stdout and "missed" in out.stdout and "stale" in out.stdout
     assert "p99" in out.stdout and "run(s) ABORTED" in out.stderr
+
+
+def test_periodic_sync_runs_a_trial():
+    """SYNC from python-can's periodic send (a thread on the virtual bus; the kernel's broadcast manager on
+    SocketCAN): the loop follows it, t is the SYNC schedule, the drives saw at least one SYNC per logged cycle."""
+    import tempfile
+
+    from hil_sim.canopen_inprocess import InProcessCanopen
+    from js2io.session import run_trials
+    c = load_trials_config(ROBOT.trials_path)
+    c["excitation"].update(period_s=1.0, periods=1, harmonics=2, fade_s=0.2, speed_fraction=0.2)
+    with tempfile.TemporaryDirectory() as d, InProcessCanopen(ROBOT, cycle_hz=100, realtime=True,
+                                                              sim_realtime=False) as rig:
+        rig.group.sync_mode = "periodic"
+        res = run_trials(rig.group, ROBOT, ["excitation"], Path(d) / "p.mcap", trials_config=c,
+                         max_consecutive_lost=50)
+        assert rig.group._sync_task is not None and rig.group.sync_mode == "periodic"
+        syncs = rig.sim.syncs
+        log = read_log(Path(d) / "p.mcap")
+    assert not res.aborted, res.text()
+    t = log.feedback.t
+    assert len(t) > 150
+    k = np.round(t * 100).astype(int)      # on the 100 Hz schedule, strictly increasing
+    np.testing.assert_allclose(t, k / 100, atol=1e-9)
+    assert np.all(np.diff(k) >= 1)
+    assert syncs >= k[-1] - k[0]
+
+
+def test_auto_sync_is_master_off_socketcan():
+    from hil_sim.canopen_inprocess import InProcessCanopen
+    with InProcessCanopen(ROBOT, cycle_hz=100, realtime=True) as rig:
+        assert rig.group.sync_mode == "auto" and not rig.group._periodic() and rig.group.sync_mode == "master"
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="SCHED_FIFO needs root here")
+def test_bench_load_never_inherits_real_time_scheduling():
+    """--load beside --rt-priority: the busy loops run at normal priority on any CPU (real-time busy loops would
+    take both cores from everything)."""
+    code = ("import os, sys; sys.path.insert(0, 'scripts'); import bench_acquire as b\n"
+            "os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(5)); os.sched_setaffinity(0, {0})\n"
+            "p = b.start_load(1)\n"
+            "print(os.sched_getscheduler(p[0].pid) == os.SCHED_OTHER, sorted(os.sched_getaffinity(p[0].pid)))\n"
+            "b.stop_load(p)\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.stdout.strip() == f"True {list(range(os.cpu_count()))}", out.stdout + out.stderr
