@@ -155,13 +155,21 @@ def write_report(ident, outdir: Path, verdict: dict | None = None) -> Path:
     val_rows = []
     for k, j in enumerate(arm.joints):
         row = [j]
-        for key in ("mixed", "simultaneous", "mixed_wls", "physical"):
+        for key in ("mixed", "simultaneous", "mixed_wls", "physical", "baseline"):
             if key in v:
                 row.append(_f(v[key]["rms"][k], 3))
         row.append(f"{100 * v['nrms'][k]:.2f} %")
+        row.append(f"{100 * v['rel'][k]:.2f} %")
+        if "baseline" in v:
+            row.append(f"{100 * v['baseline']['rel'][k]:.2f} %")
         val_rows.append(row)
-    val_head = ["axis"] + [f"RMS {k} (N m)" for k in ("mixed", "simultaneous", "mixed_wls", "physical") if k in v] + \
-        [f"NRMS ({ident.chosen})"]
+    keys = [k for k in ("mixed", "simultaneous", "mixed_wls", "physical") if k in v]
+    val_head = ["axis"] + [f"RMS {k} (N m)" for k in keys] + (["RMS textbook OLS (N m)"] if "baseline" in v else []) \
+        + [f"NRMS (exported: {v['exported']})", "relative error, exported"] \
+        + (["relative error, textbook OLS"] if "baseline" in v else [])
+    if "baseline" in v:
+        val_rows.append(["overall"] + [""] * (len(keys) + 2) + [f"{100 * v['rel_overall']:.2f} %",
+                                                               f"{100 * v['baseline']['rel_overall']:.2f} %"])
     parts = [
         "<!doctype html><html><head><meta charset='utf-8'><title>js2 identification report</title>",
         "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;font-size:12px}"
@@ -175,9 +183,10 @@ def write_report(ident, outdir: Path, verdict: dict | None = None) -> Path:
     if verdict is not None:
         cls = "pass" if verdict["pass"] else "fail"
         parts.append(f"<p>Verdict: <b class='{cls}'>{'PASS' if verdict['pass'] else 'FAIL'}</b></p>")
+        parts.append("".join(f"<p class='fail'>{html.escape(r)}</p>" for r in verdict.get("reasons", [])))
         parts.append(html_table(["check", "value", "threshold", "pass"],
                             [[c["check"], _f(c["value"]) if not isinstance(c["value"], bool) else c["value"],
-                              c["threshold"], c["pass"]] for c in verdict["checks"]]))
+                              c.get("threshold", ""), c["pass"]] for c in verdict["checks"]]))
     parts.append("<h2>Inputs</h2>" + html_table(["log", "sha256", "source", "truncated", "trials"],
                                             [[i["path"], i["sha256"][:16] + "…", i["source"], i["truncated"],
                                               ", ".join(i["trials"])] for i in ident.inputs]))
