@@ -4,13 +4,16 @@
 writers in :mod:`identification.output`. Steps (the paper's, numbered as in ``docs/identification.md``):
 
 1. read the logs (``js2spec.log.read_log``), check they describe the same arm, build the model (URDF + K);
-2. signals: K mapping, zero-phase filters (50 Hz velocity, 7 Hz acceleration and torque), lost cycles, trims;
+2. signals: K mapping, zero-phase filters (the paper's 50 Hz velocity, 7 Hz acceleration and torque, or what
+   ``signals.choose_cutoffs`` allows at the log's rate), lost cycles, trims; method and fit trial from the log;
 3. sequential part: static test (eq. 2-4) -> f_s and gravity at the poses; constant velocity (eq. 5) -> B, f_c;
 4. regressor of eq. 1 on the acceleration trial, base parameters (pivoted QR), condition number;
 5. mixed method: friction fixed, RLS over the acceleration trial (35,000 iterations or all samples);
    simultaneous method: the same RLS with the friction columns free; batch OLS/WLS for both;
-6. physically consistent standard parameters fitted to the base parameters;
-7. validation on data not used for fitting (a ``validation`` trial, ``--validate`` logs, or a held-out tail).
+6. physically consistent standard parameters fitted to the base parameters (J_a, fitted B, f_c >= 0; prior weight
+   toward the URDF by cross-validation on the fit data): the exported model;
+7. validation on data not used for fitting (a ``validation`` trial, ``--validate`` logs, or a held-out tail), beside
+   the textbook OLS baseline fitted on the same samples.
 """
 from __future__ import annotations
 

@@ -21,8 +21,8 @@ GRAVITY_RATIO_BAND = (0.5, 2.0)     # identified / nominal gravity torque outsid
 FACTOR_TOLERANCE = 0.25             # a ratio within 25 % of a known factor is attributed to it
 
 
-def _check(name: str, ok: bool, value, reason: str) -> dict:
-    return {"check": name, "value": value, "pass": bool(ok), "reason": None if ok else reason}
+def _check(name: str, ok: bool, value, reason: str, threshold: str = "") -> dict:
+    return {"check": name, "value": value, "threshold": threshold, "pass": bool(ok), "reason": None if ok else reason}
 
 
 def sign_checks(ident) -> list[dict]:
@@ -44,7 +44,7 @@ def sign_checks(ident) -> list[dict]:
                 bad.append(f"{label} of {j} is {v:.4g} {unit}")
     reason = ("negative physical parameters: " + "; ".join(bad[:4]) + (f" (and {len(bad) - 4} more)" if len(bad) > 4
                                                                        else "") + ": not a physical model")
-    return [_check("non_negative_mass_inertia_friction", not bad, len(bad), reason)]
+    return [_check("non_negative_mass_inertia_friction", not bad, len(bad), reason, "0 negative")]
 
 
 def mass_checks(ident) -> list[dict]:
@@ -61,12 +61,13 @@ def mass_checks(ident) -> list[dict]:
         ok = lo * tn <= tg <= hi * tn
         out.append(_check("total_mass_vs_urdf", ok, tg,
                           f"total link mass {tg:.3g} kg is {tg / tn:.2g}x the nominal URDF's {tn:.3g} kg (allowed "
-                          f"{lo:g}-{hi:g}x): check the units of the torques and the URDF"))
+                          f"{lo:g}-{hi:g}x): check the units of the torques and the URDF", f"{lo:g}-{hi:g}x URDF"))
     far = [f"{lk} {g:.3g} kg (nominal {m:.3g} kg)" for lk, g, m in zip(arm.links, got, nom)
            if m > 0 and not (m / LINK_MASS_FACTOR - LINK_MASS_SLACK_KG <= g <= m * LINK_MASS_FACTOR + LINK_MASS_SLACK_KG)]
     out.append(_check("link_masses_vs_urdf", not far, len(far),
                       f"link masses outside {LINK_MASS_FACTOR:g}x the URDF's: " + ", ".join(far[:3])
-                      + ": the data do not support these masses (check the units and the URDF)"))
+                      + ": the data do not support these masses (check the units and the URDF)",
+                      f"within {LINK_MASS_FACTOR:g}x URDF (+{LINK_MASS_SLACK_KG:g} kg)"))
     return out
 
 
@@ -104,7 +105,7 @@ def units_checks(ident) -> list[dict]:
     r_all = float(np.exp(np.nanmedian(np.log(ratio[loaded]))))
     off = [k for k in range(arm.n) if loaded[k] and not lo <= ratio[k] <= hi]
     if not off:
-        return [_check("gravity_torque_units", True, r_all, "")]
+        return [_check("gravity_torque_units", True, r_all, "", f"gravity {lo:g}-{hi:g}x URDF on every loaded axis")]
     r = r_all if not lo <= r_all <= hi else float(ratio[off[0]])
     k = off[0] if lo <= r_all <= hi else None
     factors = [(1000.0, "1000x"), (180 / np.pi, "180/pi = 57.3x (degrees?)"), (100.0, "100x"), (10.0, "10x")]
@@ -121,7 +122,7 @@ def units_checks(ident) -> list[dict]:
     else:
         reason = (f"identified gravity torques{where} are {r:.3g}x the nominal URDF's: check the units, the torque "
                   f"side and the URDF")
-    return [_check("gravity_torque_units", False, r, reason)]
+    return [_check("gravity_torque_units", False, r, reason, f"gravity {lo:g}-{hi:g}x URDF on every loaded axis")]
 
 
 def plausibility_checks(ident) -> list[dict]:

@@ -24,22 +24,23 @@ def _rows(arm, where, offsets, sqrt_viscous=False):
     return np.concatenate(Ws), np.concatenate(Ys)
 
 
-def reference_rms(ident, urdf_text: str | None = None, fixed: dict | None = None, refit: bool = True):
-    """RMS/NRMS per axis on the validation samples of a reference model.
+def reference_prediction(ident, urdf_text: str | None = None, fixed: dict | None = None, refit: bool = True):
+    """Validation-sample torque predicted by a reference model, and the measurement it is compared with.
 
     ``urdf_text``: the reference's kinematics and inertials (default: the log's URDF); ``fixed``: standard-parameter
     values by name (``Ja_k``, ``B_k``, ``fc_k``, ``off_k``, or link names); with ``refit`` the drive terms not in
-    ``fixed`` (motor inertia, friction, offsets) are least-squares fitted on the fitting samples with the inertials
-    held, otherwise they are 0. Returns ``(rms, nrms, pi)``.
-    """
+    ``fixed`` (motor inertia, Coulomb + viscous friction, offsets when the identified model has them or ``fixed``
+    names them) are least-squares fitted on the fitting samples with the inertials held, otherwise they are 0.
+    Returns ``(pred, meas, pi)``."""
     drives = ident.logs[0].drives
-    offsets = ident.options.offsets
+    fixed = fixed or {}
+    offsets = bool(ident.options.offsets) or any(k.startswith("off_") for k in fixed)
     arm = arm_model(urdf_text or ident.arm.urdf_text, drives)
     names = standard_names(arm, offsets)
     pi = standard_vector(arm, offsets=offsets)
     known = np.zeros(len(pi), dtype=bool)
     known[column_groups(arm, offsets)["inertial"]] = True
-    for k, v in (fixed or {}).items():
+    for k, v in fixed.items():
         j = names.index(k)
         pi[j] = v
         known[j] = True
@@ -51,5 +52,12 @@ def reference_rms(ident, urdf_text: str | None = None, fixed: dict | None = None
         sol, *_ = np.linalg.lstsq(A[:, free], y, rcond=None)
         pi[free] = sol
     Wv, Yv = _rows(arm, ident.val_data["where"], offsets)
-    r, nr = rms_nrms(Wv @ pi, Yv)
+    return Wv @ pi, Yv, pi
+
+
+def reference_rms(ident, urdf_text: str | None = None, fixed: dict | None = None, refit: bool = True):
+    """RMS/NRMS per axis on the validation samples of a reference model (see :func:`reference_prediction`).
+    Returns ``(rms, nrms, pi)``."""
+    pred, meas, pi = reference_prediction(ident, urdf_text, fixed, refit)
+    r, nr = rms_nrms(pred, meas)
     return r, nr, pi

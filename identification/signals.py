@@ -1,7 +1,8 @@
 """Signals: motor angles -> filtered angles, velocities, accelerations and torques (the paper's digital filters).
 
 The paper differentiates the encoder angles through digital filters, cut-off **50 Hz for velocity** and **7 Hz for
-acceleration**. Here, zero-phase Butterworth filters (``scipy.signal.sosfiltfilt``, forward + backward, no delay):
+acceleration**. :func:`choose_cutoffs` keeps those where the log's sample rate and motion allow and otherwise picks
+admissible ones (always below Nyquist), with a one-line reason; ``js2-identify`` uses it unless cut-offs are given. Here, zero-phase Butterworth filters (``scipy.signal.sosfiltfilt``, forward + backward, no delay):
 
 * ``q_motor``  = LP_vel(encoder angle)                     (rad, motor side)
 * ``dq_motor`` = d/dt q_motor (central differences)         (rad/s, 50 Hz band)

@@ -174,7 +174,7 @@ def test_bad_inputs_give_one_clear_message_and_exit_2(tmp_path, capsys):
     msg = _run_err([nan, "-o", out, "-q"])
     assert str(nan) in msg and "NaN" in msg and "j3" in msg
     no_vel = synthetic_log(tmp_path / "accel_only.mcap", seconds=3)
-    msg = _run_err([no_vel, "-o", out, "-q"])
+    msg = _run_err([no_vel, "-o", out, "-q", "--method", "mixed"])     # the default (auto) would pick simultaneous
     assert str(no_vel) in msg and "'velocity' trial" in msg
     msg = _run_err([no_vel, "-o", out, "-q", "--method", "simultaneous", "--fit-trials", "excitation"])
     assert "'excitation'" in msg and "acceleration" in msg

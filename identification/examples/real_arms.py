@@ -91,8 +91,11 @@ def run_tx40(data: Path, work: Path, progress: bool = False) -> dict:
     from identification.signals import FilterSettings
 
     log = import_tx40(data, work / "tx40.mcap")
+    # FIGAROH's model structure (Coulomb + viscous + offset per axis), so that the friction values compare like for
+    # like; the plain-command model (which may add a square-root viscous term) is scripts/bench_real_arms.py's
     ident = identify([log], IdentifyOptions(method="simultaneous", fit_trials=("excitation",), offsets=True,
-                                            filters=FilterSettings(50.0, 7.0), progress=progress))
+                                            sqrt_viscous=False, filters=FilterSettings(50.0, 7.0),
+                                            progress=progress))
     pub = tx40_published(data, ident.logs[0].drives)
     r_pub, _, _ = reference_rms(ident, fixed=pub["fixed"], refit=False)
     r_cad, _, _ = reference_rms(ident, refit=True)
@@ -121,7 +124,8 @@ def run_kuka(data: Path, work: Path, progress: bool = False) -> dict:
 
     logs = import_kuka(data, work)
     ident = identify([logs[0]], IdentifyOptions(method="simultaneous", fit_trials=("excitation",), offsets=True,
-                                                validate_paths=(str(logs[2]),), progress=progress))
+                                                sqrt_viscous=False, validate_paths=(str(logs[2]),),
+                                                progress=progress))
     pubdir = data / "kuka_lwr4" / "published"
     refs = {}
     for name, path in (("FloBaRoID identified URDF", pubdir / "kuka_lwr4_identified.urdf"),
