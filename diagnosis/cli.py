@@ -14,13 +14,17 @@ examples:
   js2-diagnose runs/model runs/recording.mcap -o out --kinds stribeck cogging --min-gain 0.2
 
 what it does:
-  1. predicts the recording's motor torques with the model (eq. 1, the identified URDF + model.yaml friction and
-     motor inertias), filtered as identification filters (50 Hz velocity, 7 Hz acceleration and torque);
-  2. fits every candidate term (one per effect kind: %s) on the fit part of the recording (default: the
-     'excitation' trial, else every trial but the held-out one, else the first 2/3) and scores it on the
-     held-out part (default: the 'validation' trial, else the last 1/3);
-  3. accepts the best term while it cuts the held-out residual of its motors by at least --min-gain, then looks
-     again (at most --max-terms terms).
+  1. predicts the recording's motor torques with the model (eq. 1, the identified URDF + model.yaml friction,
+     motor inertias and offsets), filtered as the model was identified (model.yaml `filters`, default 50 Hz
+     velocity, 7 Hz acceleration and torque), every cut-off kept below 0.4 x the sample rate; joint-side torques
+     (torque sensors) are carried to the motor side with K^T;
+  2. splits the recording in three: REPORT = the 'validation' trial (else, or when it is the only trial, the last
+     30 %% of the recording); the rest ('excitation' when present) in interleaved time blocks, 2/3 FIT, 1/3 SELECT;
+  3. fits every candidate term (named effects: %s; each on every joint/link) on FIT, ranks them on SELECT and
+     walks down the ranking to the first that cuts the SELECT residual of its motors by --min-gain and beats the
+     null of a plain refit of the model's own friction; accepts it, ranks again, until none passes (at most
+     --max-terms); structure only the refit explains is reported 'unexplained', never named;
+  4. reports the gains on REPORT alone, which the search never saw.
 
 writes OUTDIR/diagnosis.json, OUTDIR/report.html, OUTDIR/model_diagnosed.yaml (the model plus `unmodelled:`),
 OUTDIR/effects.yaml (the found effects in hil_sim's format, to simulate them). Exit code 0; 1 with --strict when
@@ -42,11 +46,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--kinds", nargs="+", choices=KINDS, metavar="KIND",
                    help=f"candidate kinds to try (default: all: {', '.join(KINDS)})")
     p.add_argument("--min-gain", type=float, default=0.12,
-                   help="held-out (and fit) residual reduction a term must reach on its motors (default 0.12)")
-    p.add_argument("--max-terms", type=int, default=3, help="most terms to accept (default 3)")
-    p.add_argument("--min-speed", type=float, default=1.0,
-                   help="rad/s at the motor: slower samples are left out, friction being undefined at rest "
-                        "(default 1.0)")
+                   help="select (and fit) residual reduction a term must reach on its motors (default 0.12)")
+    p.add_argument("--max-terms", type=int, default=4, help="most terms to accept (default 4)")
+    p.add_argument("--min-speed", type=float, default=0.01,
+                   help="rad/s at the JOINT (so any gear ratio): slower samples of a joint are left out, friction "
+                        "being undefined at rest (default 0.01; motor i uses min-speed / max_j |K_ji|)")
     p.add_argument("--strict", action="store_true", help="exit 1 when the model is found incomplete")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     return p
@@ -76,10 +80,12 @@ def main(argv=None) -> int:
     print(f"where: {d['location']['text']}")
     print(f"verdict: {d['verdict']}")
     for f in d["findings"]:
-        i = f["joint_index"]
-        print(f"  {f['kind']:<24} {f['joint']:<6} held-out gain {f['holdout_gain']:6.1%}   effect: "
+        print(f"  {f['kind']:<24} {f['joint']:<12} report gain {f['holdout_gain']:6.1%}   effect: "
               f"{ {k: v for k, v in f['effect'].items() if k != 'kind'} }")
-    print(f"held-out gain of the found terms together: {d['holdout_gain']:.1%}")
+    for u in d["unexplained"]:
+        print(f"  unexplained              {u['joint']:<12} {u['fraction_of_residual']:.0%} of its select residual, "
+              f"largest {u['regime']}")
+    print(f"report gain of the found terms together (rows the search never saw): {d['holdout_gain']:.1%}")
     print(f"-> {paths['report']}, {paths['model'].name}, {paths['effects'].name}, {paths['json'].name}")
     return 1 if (args.strict and d["findings"]) else 0
 

@@ -12,10 +12,12 @@ coefficient of a present effect is positive.
 
 | kind | columns (motor i, joint j) | coefficient -> parameter |
 | --- | --- | --- |
-| stribeck | sgn(w_i) exp(-(w_i/v_s)^2) | f_s - f_c (N*m); velocity = v_s (rad/s motor) |
+| friction_refit (reference, never named) | w_i, sgn(w_i) | the model's B, f_c again (the null of the friction terms) |
+| torque_offset (reference, never named) | 1 | a sensor zero (the null of asymmetric friction) |
+| stribeck | sgn(w_i) exp(-(|w_i|/v_s)^delta) | f_s - f_c (N*m); velocity = v_s (rad/s motor), shape delta (0.5, 1, 2) |
 | cogging | sin(p theta_i), cos(p theta_i) | amplitude, phase; periods_per_rev = p |
-| payload_change | K^T Y_hand[m, mx, my, mz] | mass (kg), com = (m c)/m (m, hand link frame) |
-| thermal_drift | H_tau(I_i^2) (B w_i + f_c sgn w_i) | friction_per_kelvin with heating 1 K/A^2; time_constant = tau |
+| payload_change | K^T Y_link_j[m, mx, my, mz], any link j | mass (kg), com = (m c)/m (m, frame of link j) |
+| thermal_drift | H_tau(I_i^2) (B w_i + f_c sgn w_i), w_i, sgn w_i | friction_per_kelvin with heating 1 K/A^2; time_constant = tau |
 | load_dependent_friction | sgn(w_i) |(K^T tau_rigid)_i| | coefficient mu (-) |
 | asymmetric_friction | [w_i > 0], -[w_i < 0] | f_c+ - f_c, f_c- - f_c -> negative_scale |
 | joint_elasticity | -K^T (d tau/d q_j tau_j + M e_j d2 tau_j/dt2) (the link lags by tau_j/k) | 1/k (rad/(N*m)) -> stiffness k |
@@ -54,7 +56,13 @@ class Term:
     band = "low"          # 'low': compared in the torque's 7 Hz band; 'wide': unfiltered (ripple)
     per_joint = True      # one instance per joint/motor
     hyper_name = ""
-    extends = ""          # kind of a simpler term this one contains (nested): it must beat that one held out
+    extends: tuple = ()   # kinds of simpler terms this one contains (nested): it must beat them on the select rows
+    reference = False     # a null the data give (e.g. a refit of the model's own friction): never named an effect
+    margin = 0.25         # share of what each ``extends`` term leaves on the select rows this one must cut further
+
+    def joints(self, rd: ResidualData) -> list:
+        """Joints a term that is not ``per_joint`` is tried on."""
+        return [rd.n - 1]
 
     def grid(self, rd: ResidualData, j: int) -> list:
         return [None]
@@ -85,26 +93,71 @@ def _sgn(x):
     return np.sign(x)
 
 
-class Stribeck(Term):
-    kind, hyper_name = "stribeck", "velocity"
-
-    def grid(self, rd, j):
-        lo = 2.0 * rd.extra.get("min_speed", 1.0)
-        return list(np.geomspace(lo, 30 * lo, 13))
+class FrictionRefit(Term):
+    """Reference (never named): the model's viscous and Coulomb friction of motor j refitted, [w_j, sgn w_j]. A
+    recording of another day or temperature may need it; a named friction effect must explain more than this
+    (``extends``). When it alone passes, the motor is reported ``unexplained``."""
+    kind, reference = "friction_refit", True
 
     def columns(self, rd, j, h):
         w = _moving(rd, j)
-        col = np.zeros((len(w), rd.n, 1))
-        col[:, j, 0] = _sgn(w) * np.exp(-(np.abs(w) / h) ** 2)
+        col = np.zeros((len(w), rd.n, 2))
+        col[:, j, 0] = w
+        col[:, j, 1] = _sgn(w)
         return col
 
     def effect(self, rd, j, h, coef, std):
+        mdl = rd.extra["model"]
+        return ({"kind": self.kind, "joints": [j], "viscous_change": float(coef[0]),
+                 "coulomb_change": float(coef[1])},
+                f"motor {j + 1}'s viscous friction differs by {coef[0]:+.3g} N*m*s/rad (model "
+                f"{mdl.friction_viscous[j]:.3g}), Coulomb by {coef[1]:+.3g} N*m (model {mdl.friction_coulomb[j]:.3g})",
+                True, "")
+
+
+class TorqueOffset(Term):
+    """Reference (never named as a physical effect): a constant torque offset on motor j (a sensor zero that moved
+    since identification). An asymmetric friction must explain more than this (``extends``)."""
+    kind, reference = "torque_offset", True
+
+    def columns(self, rd, j, h):
+        col = np.zeros((len(rd.t), rd.n, 1))
+        col[:, j, 0] = 1.0
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        return ({"kind": self.kind, "joints": [j], "offset": float(coef[0])},
+                f"motor {j + 1}'s torque is offset by {coef[0]:+.3g} N*m from the model's", True, "")
+
+
+STRIBECK_SHAPES = (0.5, 1.0, 2.0)
+
+
+class Stribeck(Term):
+    """Friction rising below v_s: f_c + (f_s - f_c) exp(-(|w|/v_s)^delta) (hil_sim's form); v_s and the shape delta
+    on a grid (fit rows), f_s - f_c by least squares."""
+    kind, hyper_name, extends = "stribeck", "(velocity, shape)", ("friction_refit",)
+
+    def grid(self, rd, j):
+        lo = 2.0 * float(rd.min_speed_motor[j]) if rd.min_speed_motor is not None else 2.0
+        return [(float(v), d) for v in np.geomspace(lo, 30 * lo, 13) for d in STRIBECK_SHAPES]
+
+    def columns(self, rd, j, h):
+        v, d = h
+        w = _moving(rd, j)
+        col = np.zeros((len(w), rd.n, 1))
+        col[:, j, 0] = _sgn(w) * np.exp(-(np.abs(w) / v) ** d)
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        v, d = h
         fc = float(rd.extra["model"].friction_coulomb[j])
-        lowest = h <= self.grid(rd, j)[0] * 1.0001
+        lowest = v <= self.grid(rd, j)[0][0] * 1.0001
         ok = coef[0] > 3 * std[0] and not lowest
         why = ("" if ok else "Stribeck velocity at the lowest speed tried: what it fits is the friction step at "
                "reversals, not a resolved Stribeck curve" if lowest else "fitted low-speed excess is not positive")
-        return ({"kind": self.kind, "joints": [j], "velocity": float(h), "shape": 2.0},
+        h = v
+        return ({"kind": self.kind, "joints": [j], "velocity": float(v), "shape": float(d)},
                 f"friction rises below ~{h:.2g} rad/s (motor): static friction {fc + coef[0]:.4g} N*m against "
                 f"Coulomb {fc:.4g} N*m", ok, why)
 
@@ -112,8 +165,16 @@ class Stribeck(Term):
 class Cogging(Term):
     kind, hyper_name, band = "cogging", "periods_per_rev", "wide"
 
+    MIN_PERIODS = 5     # ripple periods the motor must sweep within the recording to tell ripple from pose
+
     def grid(self, rd, j):
-        return list(range(1, 49))
+        """Period counts p (per motor revolution, up to 48) of which the motor sweeps at least ``MIN_PERIODS`` whole
+        periods within the angles it covers: a slower function of the angle is a function of the pose (a
+        rigid-body model error on a direct drive or a joint-side encoder), not a ripple."""
+        th = rd.q_motor[rd.fit_rows | rd.select_rows, j]
+        th = th[np.isfinite(th)]
+        span = float(th.max() - th.min()) if len(th) else 0.0
+        return [p for p in range(1, 49) if p * span / (2 * np.pi) >= self.MIN_PERIODS]
 
     def columns(self, rd, j, h):
         th = np.nan_to_num(rd.q_motor[:, j])
@@ -133,28 +194,33 @@ class Cogging(Term):
 
 
 class PayloadChange(Term):
-    kind, per_joint, hyper_name = "payload_change", False, ""
+    """A mass added to the link moved by joint j (any link; the hand is j = n - 1): K^T Y columns of that link's
+    m, m c_x, m c_y, m c_z (eq. 1's rigid-body part is linear in them)."""
+    kind, hyper_name = "payload_change", ""
 
     def motors(self, rd, j):
         return np.arange(rd.n)
 
     def columns(self, rd, j, h):
-        hand = rd.n - 1                              # the link moved by the last joint: the hand
-        cols = rd.W_rigid_motor[:, :, 10 * hand:10 * hand + 4]   # m, mx, my, mz of the hand link
-        return cols
+        return rd.W_rigid_motor[:, :, 10 * j:10 * j + 4].copy()   # m, mx, my, mz of link j
 
     def effect(self, rd, j, h, coef, std):
         m = float(coef[0])
         com = (coef[1:4] / m).tolist() if abs(m) > 1e-6 else [0.0, 0.0, 0.0]
-        ok = abs(m) > 3 * std[0] and abs(m) < 20 and float(np.linalg.norm(com)) < 1.0
-        return ({"kind": self.kind, "joints": [rd.n - 1], "mass": m, "com": [float(c) for c in com]},
-                f"the hand carries {m:+.3g} kg more than the model, centre of mass at "
-                f"[{', '.join(f'{c:.3g}' for c in com)}] m (hand frame)", ok,
+        ok = abs(m) > 3 * std[0] and abs(m) < 20 and float(np.linalg.norm(com)) < 0.5
+        link = rd.arm.links[j] if hasattr(rd.arm, "links") else f"link {j + 1}"
+        return ({"kind": self.kind, "joints": [j], "mass": m, "com": [float(c) for c in com]},
+                f"{link} (moved by {rd.joints[j]}) carries {m:+.3g} kg more than the model, centre of mass at "
+                f"[{', '.join(f'{c:.3g}' for c in com)}] m ({link} frame)", ok,
                 "" if ok else "mass change not significant or implausible")
 
 
 class ThermalDrift(Term):
-    kind, hyper_name = "thermal_drift", "time_constant"
+    """Friction scaled by the winding's temperature rise, a first-order lag of I^2 (time constant on a grid), plus the
+    plain refit it contains ([heat * (B w + f_c sgn w), w, sgn w]): it must explain the drift's time course, not its
+    mean level (which a refit of the model's friction explains as well) — by a quarter of what the refit leaves, like the other friction terms."""
+    kind, hyper_name, extends = "thermal_drift", "time_constant", ("friction_refit",)
+    margin = 0.25
 
     def grid(self, rd, j):
         span = float(rd.t[-1] - rd.t[0])
@@ -164,8 +230,9 @@ class ThermalDrift(Term):
         i2 = np.nan_to_num(rd.motor_current[:, j]) ** 2
         a = np.exp(-1.0 / (rd.fs * h))
         heat = lfilter([1 - a], [1, -a], i2)          # K per (K/A^2): the temperature rise with heating = 1
-        col = np.zeros((len(i2), rd.n, 1))
+        col = np.zeros((len(i2), rd.n, 3))
         col[:, j, 0] = heat * np.nan_to_num(rd.friction_pred[:, j])
+        col[:, j, 1:] = FrictionRefit().columns(rd, j, None)[:, j, :]   # nested: contains the plain refit
         return col
 
     def effect(self, rd, j, h, coef, std):
@@ -177,7 +244,7 @@ class ThermalDrift(Term):
 
 
 class LoadDependentFriction(Term):
-    kind = "load_dependent_friction"
+    kind, extends = "load_dependent_friction", ("friction_refit",)
 
     def columns(self, rd, j, h):
         col = np.zeros((len(rd.t), rd.n, 1))
@@ -185,14 +252,14 @@ class LoadDependentFriction(Term):
         return col
 
     def effect(self, rd, j, h, coef, std):
-        ok = coef[0] > 3 * std[0]
+        ok = 3 * std[0] < coef[0] < 0.5          # mu: a friction coefficient of the gear's load, well below 1
         return ({"kind": self.kind, "joints": [j], "coefficient": float(coef[0])},
                 f"friction grows by {coef[0]:.3g} N*m per N*m of transmitted load", ok,
                 "" if ok else "load coefficient not positive/significant")
 
 
 class AsymmetricFriction(Term):
-    kind = "asymmetric_friction"
+    kind, extends = "asymmetric_friction", ("torque_offset",)
 
     def columns(self, rd, j, h):
         w = _moving(rd, j)
@@ -206,39 +273,36 @@ class AsymmetricFriction(Term):
         f_pos, f_neg = fc + coef[0], fc + coef[1]
         scale = f_neg / f_pos if f_pos > 0 else float("nan")
         diff_std = float(np.hypot(std[0], std[1]))
-        ok = f_pos > 0 and f_neg > 0 and abs(coef[0] - coef[1]) > 3 * diff_std
+        ok = f_pos > 0 and f_neg > 0 and abs(coef[0] - coef[1]) > 3 * diff_std and 0.5 <= scale <= 2
+        why = ("" if ok else "more than 2:1 between the directions: not a friction asymmetry (an offset, a model "
+               "error): unexplained" if (f_pos > 0 and f_neg > 0 and not 0.5 <= scale <= 2) else "directions do not differ significantly")
         return ({"kind": self.kind, "joints": [j], "negative_scale": float(scale)},
-                f"Coulomb friction {f_pos:.4g} N*m turning forward, {f_neg:.4g} N*m backward", ok,
-                "" if ok else "directions do not differ significantly")
+                f"Coulomb friction {f_pos:.4g} N*m turning forward, {f_neg:.4g} N*m backward", ok, why)
 
 
-def _rnea_dq(rd: ResidualData, j: int, eps: float = 1e-6) -> np.ndarray:
-    """d tau_rigid / d q_j (joint side, (N, n)) by central differences of pinocchio RNEA, cached per joint."""
-    cache = rd.extra.setdefault("dtau_dq", {})
-    if j in cache:
-        return cache[j]
-    arm = rd.arm
-    model, data = arm.model, arm.model.createData()
-    K = rd.K
-    q = np.nan_to_num(rd.q_joint)
-    dq = np.nan_to_num(rd.dq_motor) @ K.T
-    ddq = np.nan_to_num(rd.ddq_motor) @ K.T
-    iv = arm.idx_v
-    out = np.zeros_like(q)
-    qp = np.zeros(model.nq)
-    vp = np.zeros(model.nv)
-    ap = np.zeros(model.nv)
-    for s in range(len(q)):
-        qp[iv] = q[s]
-        vp[iv] = dq[s]
-        ap[iv] = ddq[s]
-        qp[iv[j]] += eps
-        hi = pin.rnea(model, data, qp, vp, ap)[iv]
-        qp[iv[j]] -= 2 * eps
-        lo = pin.rnea(model, data, qp, vp, ap)[iv]
-        out[s] = (hi - lo) / (2 * eps)
-    cache[j] = out
-    return out
+def _rnea_dq(rd: ResidualData, j: int) -> np.ndarray:
+    """d tau_rigid / d q_j (joint side, (N, n)): pinocchio's analytic RNEA derivatives (computeRNEADerivatives), all
+    joints in one pass over the samples, cached per recording."""
+    D = rd.extra.get("dtau_dq")
+    if D is None:
+        arm = rd.arm
+        model, data = arm.model, arm.model.createData()
+        K = rd.K
+        q = np.nan_to_num(rd.q_joint)
+        dq = np.nan_to_num(rd.dq_motor) @ K.T
+        ddq = np.nan_to_num(rd.ddq_motor) @ K.T
+        iv = arm.idx_v
+        D = np.zeros((len(q), rd.n, rd.n))
+        qp = pin.neutral(model)
+        vp = np.zeros(model.nv)
+        ap = np.zeros(model.nv)
+        for s in range(len(q)):
+            qp[iv] = q[s]
+            vp[iv] = dq[s]
+            ap[iv] = ddq[s]
+            D[s] = pin.computeRNEADerivatives(model, data, qp, vp, ap)[0][np.ix_(iv, iv)]
+        rd.extra["dtau_dq"] = D
+    return D[:, :, j]
 
 
 def _mass_column(rd: ResidualData, j: int) -> np.ndarray:
@@ -359,7 +423,8 @@ class Backlash(_Compliance):
 
     Nested: backlash contains a plain spring, so the search accepts it only where it beats ``joint_elasticity`` on
     the same joint on held-out data (``extends``)."""
-    kind, extends = "backlash", "joint_elasticity"
+    kind, extends = "backlash", ("joint_elasticity",)
+    margin = 0.04         # the play only has to add to the spring it contains
 
     def grid(self, rd, j):
         return list(range(len(_link_response(rd, j)[1])))
@@ -368,6 +433,18 @@ class Backlash(_Compliance):
         col = np.zeros((len(rd.t), rd.n, 2))
         col[:, :, :1] = super().columns(rd, j, h)
         col[:, :, 1:] = JointElasticity().columns(rd, j, None)
+        return col
+
+    def columns_low(self, rd, j, h):
+        """As :meth:`Term.columns_low`, from the link responses of the whole grid filtered once per joint (the
+        filter is linear: filtering resp * K[j, :] is filtering resp, then scaling)."""
+        cache = rd.extra.setdefault("backlash_low", {})
+        if j not in cache:
+            cache[j] = (rd.lowpass(_link_response(rd, j)[0]), rd.lowpass(JointElasticity().columns(rd, j, None)))
+        resp_low, el_low = cache[j]
+        col = np.empty((len(rd.t), rd.n, 2))
+        col[:, :, 0] = resp_low[:, int(h)][:, None] * rd.K[j, :][None, :]
+        col[:, :, 1:] = el_low
         return col
 
     def effect(self, rd, j, h, coef, std):
@@ -379,6 +456,7 @@ class Backlash(_Compliance):
                 "" if ok else f"simulated play does not match the residual (scale {coef[0]:.2f})")
 
 
-LIBRARY: tuple[Term, ...] = (Stribeck(), Cogging(), PayloadChange(), ThermalDrift(), LoadDependentFriction(),
-                             AsymmetricFriction(), JointElasticity(), Backlash())
-KINDS = tuple(t.kind for t in LIBRARY)
+LIBRARY: tuple[Term, ...] = (FrictionRefit(), TorqueOffset(), Stribeck(), Cogging(), PayloadChange(), ThermalDrift(),
+                             LoadDependentFriction(), AsymmetricFriction(), JointElasticity(), Backlash())
+KINDS = tuple(t.kind for t in LIBRARY if not t.reference)            # the named effects (hil_sim's kinds)
+REFERENCE_KINDS = tuple(t.kind for t in LIBRARY if t.reference)

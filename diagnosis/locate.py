@@ -46,7 +46,7 @@ def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
     """Per motor: held-out residual RMS before and after the found terms, the regime where the residual is largest
     relative to the motor's overall level, and whether the motor is where the mismatch is (``flagged``: the accepted
     terms cut its held-out residual by at least ``min_drop``, or — with nothing accepted — a candidate term reaches
-    the search's ``min_gain`` on its held-out rows without passing every other test)."""
+    the search's ``min_gain`` on the select rows without passing every other test). RMS figures: report rows."""
     r = np.nan_to_num(rd.residual)
     rows = rd.fit_rows | rd.holdout_rows
     m = rd.mask & rows[:, None]
@@ -60,7 +60,7 @@ def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
             if not sc.fitted.plausible:
                 continue
             for i in sc.fitted.effect.get("joints", []):
-                best_gain[i] = max(best_gain[i], sc.holdout_gain)
+                best_gain[i] = max(best_gain[i], sc.select_gain)
     else:
         after, best_gain = before.copy(), np.zeros(rd.n)
     drop = 1 - after / np.where(before > 0, before, np.nan)

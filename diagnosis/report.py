@@ -91,6 +91,8 @@ def fig_finding(res: DiagnosisResult, k: int):
 
 
 def _g(x, p=3):
+    if isinstance(x, (list, tuple)):
+        return ", ".join(_g(v, p) for v in x)
     return "–" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{p}g}"
 
 
@@ -112,10 +114,11 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
     figs = [("Held-out residual per motor", png_base64(fig_rms(res)))]
     for k in range(len(res.accepted)):
         figs.append((f"Finding {k + 1}", png_base64(fig_finding(res, k))))
-    rows = [[f["kind"], f["joint"], _g(f["hyper"]), f"{f['holdout_gain']:.1%}", f"{f['fit_gain']:.1%}",
+    rows = [[f["kind"], f["joint"], str(f["hyper"]), f"{f['holdout_gain']:.1%}", f"{f['fit_gain']:.1%}",
              f["summary"]] for f in d["findings"]]
-    cand = [[c["kind"], c["joint"], _g(c["hyper"]), f"{c['holdout_gain_all']:.1%}", f"{c['holdout_gain']:.1%}",
-             f"{c['fit_gain']:.1%}", "yes" if c["plausible"] else f"no: {c['why_not']}"] for c in d["candidates_step1"]]
+    cand = [[c["kind"], c["joint"], _g(c["hyper"]), f"{c['select_gain_all']:.1%}", f"{c['select_gain']:.1%}",
+             f"{c['fit_gain']:.1%}", "yes" if c["plausible"] and not c["why_not"] else f"no: {c['why_not']}"]
+            for c in d["candidates_step1"]]
     loc_rows = [[f"motor {m['motor'] + 1}", m["joint"], _g(m["holdout_rms_before"]), _g(m["holdout_rms_after"]),
                  f"{m['holdout_drop']:.0%}" if m["holdout_drop"] is not None else "–", m["worst_regime"] or "–",
                  "yes" if m["flagged"] else ""] for m in d["location"]["motors"]]
@@ -125,11 +128,11 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
             f"<h2>Where</h2><p>{html.escape(d['location']['text'])}</p>",
             html_table(["motor", "joint", "held-out RMS before (N m)", "after", "drop", "largest in", "mismatch"],
                    loc_rows),
-            "<h2>What was found</h2>" + (html_table(["kind", "joint", "hyper-parameter", "held-out gain", "fit gain",
+            "<h2>What was found</h2>" + (html_table(["kind", "joint", "hyper-parameter", "report gain", "fit gain",
                                                  "what it means"], rows) if rows else "<p>nothing</p>"),
             "<h2>Candidates tried (first step, best first)</h2>",
-            html_table(["kind", "joint", "hyper", "held-out gain (all motors)", "held-out gain (its motors)",
-                    "fit gain", "plausible"], cand)]
+            html_table(["kind", "joint", "hyper", "select gain (all motors)", "select gain (its motors)",
+                    "fit gain", "passes"], cand)]
     for title, png in figs:
         body.append(f"<h2>{html.escape(title)}</h2><img src='data:image/png;base64,{png}'>")
     if d["notes"]:

@@ -19,8 +19,8 @@ class DiagnoseOptions:
     fit_trials: list[str] | None = None
     kinds: list[str] | None = None
     min_gain: float = 0.12
-    max_terms: int = 3
-    min_speed: float = 1.0          # rad/s motor: slower samples are left out (friction is undefined at rest)
+    max_terms: int = 4
+    min_speed: float = 0.01         # rad/s at the joint: slower samples are left out (friction is undefined at rest)
     progress: bool = False
 
 
@@ -76,21 +76,54 @@ class DiagnosisResult:
         return {
             "model": str(self.model.path), "recording": str(self.log_path),
             "split": self.rd.split_note,
-            "min_speed_rad_s": self.rd.extra.get("min_speed"),
+            "rows": {"fit": int(self.rd.fit_rows.sum()), "select": int(self.rd.select_rows.sum()),
+                     "report": int(self.rd.holdout_rows.sum())},
+            "sample_rate_hz": self.rd.fs,
+            "filters_hz": {"velocity": self.rd.signals.settings.fc_velocity_hz,
+                           "acceleration_and_torque": self.rd.signals.settings.fc_acceleration_hz},
+            "torque_side": self.rd.torque_side,
+            "min_speed_joint_rad_s": self.rd.extra.get("min_speed"),
+            "min_speed_motor_rad_s": self.rd.min_speed_motor.tolist(),
+            "candidates_tried": self.search.tried_,
             "location": self.location,
             "findings": self.findings(),
-            "verdict": (f"the model leaves out: " + "; ".join(f"{f['kind']} on {f['joint']} ({f['summary']})"
-                                                          for f in self.findings())
-                        if self.accepted else "no candidate term improves the held-out fit enough: "
-                                              "nothing named"),
+            "verdict": self.verdict(),
+            "unexplained": self.unexplained(),
             "holdout_rms": {"before": base["low"]["holdout"].tolist(), "after": fin["low"]["holdout"].tolist(),
                             "band": "torque band (acceleration filter)"},
             "holdout_rms_wide": {"before": base["wide"]["holdout"].tolist(),
                                  "after": fin["wide"]["holdout"].tolist(), "band": "unfiltered"},
             "holdout_gain": self.search.score(self.rd, "low"),
+            "holdout_gain_definition": "report rows only (never seen by the search): 1 - sum of squared residual "
+                                       "after / before the found terms, each motor's residual scaled by its RMS on "
+                                       "the fit rows",
             "candidates_step1": runners,
             "notes": self.notes,
         }
+
+    def unexplained(self) -> list[dict]:
+        """Structure no named term explains: reference terms (a refit of the model's own friction and offset) that
+        passed every test, with where (joint, regime) and how much of that motor's select-rows residual they take."""
+        out = []
+        for s in self.search.references_:
+            j = s.fitted.joint
+            mot = self.location["motors"][j] if self.location else {}
+            out.append({"kind": "unexplained", "joint": self.rd.joints[j], "joint_index": j,
+                        "regime": mot.get("worst_regime"), "fraction_of_residual": round(float(s.select_gain), 4),
+                        "holdout_gain": float(s.holdout_gain),
+                        "what": "the model's friction / torque offset on this motor differ from the recording's "
+                                "(a refit explains it; no named effect does better): " + s.fitted.summary})
+        return out
+
+    def verdict(self) -> str:
+        if self.accepted:
+            return "the model leaves out: " + "; ".join(f"{f['kind']} on {f['joint']} ({f['summary']})"
+                                                       for f in self.findings())
+        if self.search.references_:
+            return ("unexplained: the residual has structure on " + ", ".join(
+                self.rd.joints[s.fitted.joint] for s in self.search.references_)
+                + " that no named effect explains better than a refit of the model's own friction: nothing named")
+        return "none: no candidate term improves the fit on held-out data enough: nothing named"
 
     def diagnosed_model(self) -> dict:
         """model.yaml extended with ``unmodelled:`` (the effects found, in hil_sim's effect format)."""
@@ -126,4 +159,10 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path,
     search = MismatchSearch(kinds=opt.kinds, min_gain=opt.min_gain, max_terms=opt.max_terms,
                             progress=progress).fit(rd)
     loc = locate(rd, search)
+    if (rd.signals.settings.fc_velocity_hz, rd.signals.settings.fc_acceleration_hz) != (
+            (mdl.raw.get("filters") or {}).get("velocity_cutoff_hz", 50.0),
+            (mdl.raw.get("filters") or {}).get("acceleration_cutoff_hz", 7.0)):
+        notes.append(f"filters: {rd.signals.settings.fc_velocity_hz:g} Hz velocity, "
+                     f"{rd.signals.settings.fc_acceleration_hz:g} Hz acceleration/torque (the model's cut-offs "
+                     f"kept below 0.4 x the {rd.fs:g} Hz sample rate)")
     return DiagnosisResult(model=mdl, log_path=Path(log_path), rd=rd, search=search, location=loc, notes=notes)

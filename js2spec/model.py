@@ -20,7 +20,7 @@ from .errors import ConfigError
 class IdentifiedModel:
     path: Path
     joints: list[str]
-    friction_static: np.ndarray      # f_s, N*m motor side
+    friction_static: np.ndarray      # f_s, N*m motor side (NaN: not identified, simultaneous method)
     friction_coulomb: np.ndarray     # f_c, N*m motor side
     friction_viscous: np.ndarray     # B, N*m*s/rad motor side
     motor_inertia: np.ndarray        # J_a, kg*m^2
@@ -47,16 +47,19 @@ class IdentifiedModel:
         return list(self.raw.get("unmodelled") or [])
 
 
-def _vec(d: dict, key: str, n: int, path, name: str) -> np.ndarray:
+def _vec(d: dict, key: str, n: int, path, name: str, nullable: bool = False) -> np.ndarray:
     if key not in d:
         raise ConfigError(path, name, "missing")
     try:
-        arr = np.asarray(d[key], dtype=float)
+        vals = d[key]
+        if nullable and isinstance(vals, list):
+            vals = [np.nan if v is None else v for v in vals]
+        arr = np.asarray(vals, dtype=float)
     except (TypeError, ValueError):
         raise ConfigError(path, name, "must be a list of numbers") from None
     if arr.shape != (n,):
         raise ConfigError(path, name, f"must have one entry per joint ({n}), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.all(np.isfinite(arr) | (nullable & np.isnan(arr))):
         raise ConfigError(path, name, "contains NaN or infinite values")
     return arr
 
@@ -79,7 +82,8 @@ def load_model(path: str | Path) -> IdentifiedModel:
     fr = d.get("friction")
     if not isinstance(fr, dict):
         raise ConfigError(path, "friction", "missing (mapping with static, coulomb, viscous)")
-    fs = _vec(fr, "static", n, path, "friction.static")
+    # static friction comes from the sequential static test; a model from the simultaneous method has none (null)
+    fs = _vec(fr, "static", n, path, "friction.static", nullable=True)
     fc = _vec(fr, "coulomb", n, path, "friction.coulomb")
     fv = _vec(fr, "viscous", n, path, "friction.viscous")
     ja = _vec(d, "motor_inertia", n, path, "motor_inertia")

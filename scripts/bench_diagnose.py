@@ -1,0 +1,251 @@
+#!/usr/bin/env python3
+"""Benchmark js2-diagnose on randomised simulator cases: confusion matrix and parameter errors.
+
+1. the simulated Js-2 runs the identification trials with no hidden effect; js2-identify makes the model (once);
+2. case k (seed k, fixed): a random draw of 0, 1 or 2 effects (kind, joint or link, magnitude) and a random
+   excitation + validation trajectory (the trials' Fourier seeds, centres and amplitudes drawn too, so no two cases
+   share a trajectory); the simulator records it with those effects, the model knows none of them;
+3. js2-diagnose with its defaults (no flags) names what it finds; a true effect counts as found when the same kind
+   is named on the same joint (payload: the same link).
+
+Prints the confusion matrix (rows: concealed kind, or `none` for a clean case; columns: what was named on that
+joint, `nothing` when nothing was) plus the false names (named where nothing of that kind was concealed), the rates
+and the parameter errors; writes OUT/bench.json.
+
+    .venv/bin/python scripts/bench_diagnose.py [--cases 40] [--first 0] [--out runs/bench_diagnose]
+
+Simulating a case takes about a minute on one free core; --cases sets how many are run (results are cached per
+case in OUT, so a longer run resumes).
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+KINDS = ("stribeck", "cogging", "payload_change", "thermal_drift", "load_dependent_friction", "asymmetric_friction",
+         "joint_elasticity", "backlash")
+
+
+def draw_effect(rng: np.random.Generator, kind: str, n: int) -> dict:
+    """One effect of ``kind`` at a random joint with a random magnitude (ranges: docs/diagnosis.md)."""
+    if kind == "stribeck":
+        return {"kind": kind, "joints": [int(rng.integers(0, n))], "velocity": float(rng.uniform(2.0, 8.0)),
+                "shape": float(rng.choice([1.0, 2.0]))}
+    if kind == "cogging":
+        return {"kind": kind, "joints": [int(rng.integers(0, n))], "amplitude": float(rng.uniform(0.003, 0.008)),
+                "periods_per_rev": int(rng.choice([1, 2, 3, 4])), "phase": float(rng.uniform(-np.pi, np.pi))}
+    if kind == "payload_change":
+        return {"kind": kind, "joints": [int(rng.integers(3, n))], "mass": float(rng.uniform(0.15, 0.8)),
+                "com": [float(x) for x in rng.uniform(-0.05, 0.05, 3)]}
+    if kind == "thermal_drift":
+        return {"kind": kind, "joints": [int(rng.integers(0, n))], "heating": float(rng.uniform(3.0, 8.0)),
+                "time_constant": float(rng.uniform(10.0, 40.0)), "friction_per_kelvin": float(rng.uniform(0.008, 0.02))}
+    if kind == "load_dependent_friction":
+        return {"kind": kind, "joints": [int(rng.integers(0, 3))], "coefficient": float(rng.uniform(0.08, 0.25))}
+    if kind == "asymmetric_friction":
+        return {"kind": kind, "joints": [int(rng.integers(0, n))],
+                "negative_scale": float(rng.choice([rng.uniform(1.3, 1.8), rng.uniform(0.55, 0.75)]))}
+    if kind == "joint_elasticity":
+        return {"kind": kind, "joints": [int(rng.integers(0, 3))], "stiffness": float(rng.uniform(800, 3000)),
+                "damping": 3.0}
+    if kind == "backlash":
+        return {"kind": kind, "joints": [int(rng.integers(0, 3))], "width": float(rng.uniform(0.02, 0.06)),
+                "stiffness": 3000.0, "damping": 3.0}
+    raise ValueError(kind)
+
+
+def draw_case(seed: int, n: int, base_trials: dict) -> dict:
+    """Case ``seed``: ~15 % clean, ~20 % two effects (different kinds, different joints), else one effect."""
+    rng = np.random.default_rng(1000 + seed)
+    u = rng.uniform()
+    count = 0 if u < 0.15 else (2 if u > 0.8 else 1)
+    effects, used = [], set()
+    kinds = list(rng.permutation(KINDS))
+    for kind in kinds:
+        if len(effects) == count:
+            break
+        e = draw_effect(rng, kind, n)
+        if e["joints"][0] in used:
+            continue
+        used.add(e["joints"][0])
+        effects.append(e)
+    trials = copy.deepcopy(base_trials)
+    for name in ("excitation", "validation"):
+        t = trials[name]
+        t["seed"] = int(rng.integers(0, 10_000))
+        t["amplitude"] = float(t["amplitude"] * rng.uniform(0.8, 1.1))
+        t["center"] = [float(c + rng.uniform(-0.2, 0.2)) for c in t["center"]]
+    return {"seed": seed, "effects": effects, "trials": {k: trials[k] for k in ("excitation", "validation")}}
+
+
+def record(robot, path: Path, effects, trials_cfg: dict, seed: int) -> None:
+    from hil_sim.direct import DirectDriveGroup
+    from hil_sim.plant import Plant
+    from js2io.session import run_trials
+
+    plant = Plant(robot, seed=seed, effects=effects)
+    with DirectDriveGroup(robot, plant=plant, seed=seed) as group:
+        res = run_trials(group, robot, ["excitation", "validation"], path, trials_config=trials_cfg, seed=seed)
+    if res.aborted:
+        raise RuntimeError(f"simulation aborted: {res.reason}")
+
+
+PARAMS = {"stribeck": ["velocity", "shape"], "cogging": ["periods_per_rev", "amplitude"], "payload_change": ["mass"],
+          "thermal_drift": ["time_constant"], "load_dependent_friction": ["coefficient"],
+          "asymmetric_friction": ["negative_scale"], "joint_elasticity": ["stiffness"], "backlash": ["width"]}
+
+
+def param_errors(true: dict, found: dict) -> dict:
+    out = {}
+    for p in PARAMS[true["kind"]]:
+        if p in true and p in found and true[p]:
+            out[p] = {"true": true[p], "found": found[p], "rel_error": abs(found[p] - true[p]) / abs(true[p])}
+    if true["kind"] == "thermal_drift":     # only heating x friction_per_kelvin is observable from torques
+        prod = true["heating"] * true["friction_per_kelvin"]
+        out["heating*friction_per_kelvin"] = {"true": prod, "found": found["friction_per_kelvin"] * found["heating"],
+                                              "rel_error": abs(found["friction_per_kelvin"] * found["heating"] - prod)
+                                              / prod}
+    return out
+
+
+def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path) -> dict:
+    from diagnosis.run import diagnose
+
+    res_path = out / f"case_{case['seed']:03d}.json"
+    if res_path.is_file():
+        return json.loads(res_path.read_text())
+    cfg = copy.deepcopy(base_cfg)
+    cfg.update(copy.deepcopy(case["trials"]))
+    rec = out / f"case_{case['seed']:03d}.mcap"
+    t0 = time.time()
+    record(robot, rec, case["effects"], cfg, seed=case["seed"])
+    t1 = time.time()
+    res = diagnose(model, rec)
+    t2 = time.time()
+    named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
+              "report_gain": f["holdout_gain"]} for f in res.findings()]
+    row = {"seed": case["seed"], "effects": case["effects"], "named": named,
+           "unexplained": [u["joint_index"] for u in res.unexplained()],
+           "sim_s": round(t1 - t0, 1), "diagnose_s": round(t2 - t1, 1)}
+    res_path.write_text(json.dumps(row, default=float))
+    rec.unlink(missing_ok=True)
+    return row
+
+
+def score(rows: list[dict]) -> dict:
+    labels = ["none"] + list(KINDS)
+    cols = ["nothing"] + list(KINDS)
+    conf = {r: {c: 0 for c in cols} for r in labels}
+    false_names = {k: 0 for k in KINDS}
+    hits = total = clean_ok = clean = 0
+    errors = {k: [] for k in KINDS}
+    for row in rows:
+        named = {(f["kind"], f["joint"]): f for f in row["named"]}
+        if not row["effects"]:
+            clean += 1
+            clean_ok += not named
+            if not named:
+                conf["none"]["nothing"] += 1
+            for f in row["named"]:
+                conf["none"][f["kind"]] += 1
+            continue
+        true_keys = set()
+        for e in row["effects"]:
+            j = e["joints"][0]
+            true_keys.add((e["kind"], j))
+            total += 1
+            f = named.get((e["kind"], j))
+            if f is not None:
+                hits += 1
+                conf[e["kind"]][e["kind"]] += 1
+                errors[e["kind"]].append(param_errors(e, f["effect"]))
+            else:
+                on_j = [g for g in row["named"] if g["joint"] == j]
+                conf[e["kind"]][on_j[0]["kind"] if on_j else "nothing"] += 1
+        for key, f in named.items():
+            if key not in true_keys:
+                false_names[f["kind"]] += 1
+    return {"confusion": conf, "false_names": false_names, "effects_found": hits, "effects": total,
+            "effect_rate": hits / total if total else float("nan"), "clean_none": clean_ok, "clean": clean,
+            "clean_rate": clean_ok / clean if clean else float("nan"), "param_errors": errors}
+
+
+def print_report(s: dict, rows: list[dict]) -> None:
+    cols = ["nothing"] + list(KINDS)
+    short = {"nothing": "nothing", "stribeck": "strib", "cogging": "cogg", "payload_change": "payl",
+             "thermal_drift": "therm", "load_dependent_friction": "loadf", "asymmetric_friction": "asym",
+             "joint_elasticity": "elast", "backlash": "backl"}
+    print(f"cases: {len(rows)} ({s['clean']} clean, {s['effects']} concealed effects)")
+    print("| concealed \\ named on that joint | " + " | ".join(short[c] for c in cols) + " |")
+    print("|---" * (len(cols) + 1) + "|")
+    for r, d in s["confusion"].items():
+        if sum(d.values()):
+            print(f"| {r} | " + " | ".join(str(d[c]) if d[c] else "." for c in cols) + " |")
+    print("false names (named where that kind was not concealed): "
+          + (", ".join(f"{k} {v}" for k, v in s["false_names"].items() if v) or "none"))
+    print(f"right effect and joint: {s['effects_found']}/{s['effects']} = {s['effect_rate']:.0%}; "
+          f"clean cases named nothing: {s['clean_none']}/{s['clean']} = {s['clean_rate']:.0%}")
+    for kind, errs in s["param_errors"].items():
+        by = {}
+        for e in errs:
+            for p, v in e.items():
+                by.setdefault(p, []).append(v["rel_error"])
+        for p, v in by.items():
+            print(f"  {kind:<24} {p:<28} median error {np.median(v):.1%}, max {np.max(v):.1%} (n = {len(v)})")
+    secs = [r["sim_s"] + r["diagnose_s"] for r in rows if "sim_s" in r]
+    if secs:
+        print(f"time per case: simulate {np.median([r['sim_s'] for r in rows]):.0f} s, diagnose "
+              f"{np.median([r['diagnose_s'] for r in rows]):.0f} s (median)")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--cases", type=int, default=40, help="number of cases (default 40)")
+    ap.add_argument("--first", type=int, default=0, help="seed of the first case (default 0)")
+    ap.add_argument("--out", type=Path, default=Path("runs/bench_diagnose"))
+    a = ap.parse_args(argv)
+    from identification.cli.identify import main as identify_main
+    from js2io.session import _default_trials
+    from js2io.trials import load_trials_config
+    from js2spec.robot import load_robot
+
+    a.out.mkdir(parents=True, exist_ok=True)
+    robot = load_robot("js2")
+    base_cfg = load_trials_config(robot.trials_path or _default_trials())
+    session = a.out / "clean_session.mcap"
+    if not session.is_file():
+        print("recording the clean identification session ...", flush=True)
+        from hil_sim.direct import DirectDriveGroup
+        from hil_sim.plant import Plant
+        from js2io.session import run_trials
+
+        with DirectDriveGroup(robot, plant=Plant(robot, seed=0), seed=0) as group:
+            run_trials(group, robot, ["static", "velocity", "acceleration", "validation"], session)
+    model = a.out / "model"
+    if not (model / "model.yaml").is_file():
+        print("identifying the model (mixed method) ...", flush=True)
+        if identify_main([str(session), "-o", str(model), "-q", "--no-report"]) != 0:
+            return 1
+    rows = []
+    n = robot.drives.n
+    for seed in range(a.first, a.first + a.cases):
+        case = draw_case(seed, n, base_cfg)
+        row = run_case(case, model, robot, base_cfg, a.out)
+        rows.append(row)
+        truth = ", ".join(f"{e['kind']}@{e['joints'][0]}" for e in row["effects"]) or "clean"
+        named = ", ".join(f"{f['kind']}@{f['joint']}" for f in row["named"]) or "nothing"
+        print(f"case {seed:3d}: concealed {truth:<50} named {named}", flush=True)
+    s = score(rows)
+    print_report(s, rows)
+    (a.out / "bench.json").write_text(json.dumps({"score": s, "rows": rows}, indent=1, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

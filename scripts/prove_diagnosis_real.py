@@ -1,0 +1,149 @@
+#!/usr/bin/env python3
+"""The diagnosis on real recordings (KUKA LWR4+, ../shared/data/real/kuka_lwr4: 200 Hz, joint torque sensors,
+K = I, no trial labels), with the plain commands.
+
+1. js2-import (identification.examples.real_arms.import_kuka) -> kuka_1..3.mcap;
+2. js2-identify --method simultaneous --fit-trials excitation --offsets on kuka_1 (a model with friction.static
+   null, joint-side torques);
+3. clean: js2-diagnose MODEL kuka_i.mcap -o DIR on each recording -> must say none or unexplained, never a named
+   effect;
+4. payload protocol: a known point mass (2 kg at [0, 0.02, 0.08] m in the hand link's frame) is added to the hand
+   along the recorded motion — its torque is pinocchio's RNEA of the arm with the mass minus without, on the
+   recorded positions and the provider's velocities and accelerations — and js2-diagnose (no extra flags) names
+   payload_change on the hand with its mass. Done on each of the three recordings: kuka_2 (neither used to identify
+   the model nor seen before) is the protocol's case (within 10 %); kuka_1 is the model's own recording, kuka_3
+   shows the spread real model error gives;
+5. any sample rate: the kuka_2 payload recording decimated to 100 Hz (the paper's 50 Hz velocity filter would sit at
+   Nyquist) is diagnosed too.
+
+    .venv/bin/python scripts/prove_diagnosis_real.py [--data ../shared/data/real] [--out runs/prove_diagnosis_real]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+DEFAULT_DATA = HERE.parents[1] / "shared" / "data" / "real"
+PAYLOAD_MASS = 2.0                  # kg
+PAYLOAD_COM = (0.0, 0.02, 0.08)     # m, hand link frame
+
+
+def _kuka_paths(data: Path):
+    from identification.examples.real_arms import HERE as EX
+
+    d = data / "kuka_lwr4"
+    return d, d / "kinematics" / "kuka_lwr4.urdf", EX / "kuka_lwr4" / "drives.yaml"
+
+
+def payload_torque(urdf: Path, joints: list[str], q, dq, ddq, mass: float, com, link_joint: int = -1) -> np.ndarray:
+    """Joint torque (N, n) a point mass ``mass`` at ``com`` (m, frame of the link moved by ``joints[link_joint]``)
+    adds along the motion (q, dq, ddq) (N, n) in drive order: RNEA(with) - RNEA(without), pinocchio."""
+    import pinocchio as pin
+    import re
+
+    model = pin.buildModelFromXML(re.sub(r"<dynamics\b[^>]*/>", "", urdf.read_text()))
+    heavy = model.copy()
+    jid = heavy.getJointId(joints[link_joint])
+    heavy.inertias[jid] = heavy.inertias[jid] + pin.Inertia.FromSphere(mass, 0.0).se3Action(
+        pin.SE3(np.eye(3), np.asarray(com, float)))
+    iv = [model.joints[model.getJointId(j)].idx_v for j in joints]
+    d0, d1 = model.createData(), heavy.createData()
+    out = np.zeros_like(np.asarray(q, float))
+    qp, vp, ap = np.zeros(model.nq), np.zeros(model.nv), np.zeros(model.nv)
+    for s in range(len(q)):
+        qp[iv], vp[iv], ap[iv] = q[s], dq[s], ddq[s]
+        out[s] = (pin.rnea(heavy, d1, qp, vp, ap) - pin.rnea(model, d0, qp, vp, ap))[iv]
+    return out
+
+
+def import_logs(data: Path, out: Path) -> list[Path]:
+    from identification.examples.real_arms import import_kuka
+
+    out.mkdir(parents=True, exist_ok=True)
+    return import_kuka(data, out)
+
+
+def identify(log: Path, out: Path) -> Path:
+    from identification.cli.identify import main as identify_main
+
+    if not (out / "model.yaml").is_file():
+        rc = identify_main([str(log), "-o", str(out), "--method", "simultaneous", "--fit-trials", "excitation",
+                            "--offsets", "--no-report", "-q"])
+        if rc != 0:
+            raise SystemExit(f"js2-identify failed ({rc})")
+    return out
+
+
+def payload_log(data: Path, out: Path, which: int = 2, mass: float = PAYLOAD_MASS, com=PAYLOAD_COM,
+                decimate: int = 1, trials=None) -> Path:
+    """kuka_<which> with the payload's torque added (see module docstring), optionally decimated (every
+    ``decimate``-th sample, so 200 Hz -> 100 Hz with 2), written with js2-import's writer."""
+    from identification import importer as im
+    from js2spec.drives import load_drives
+
+    d, urdf, drives = _kuka_paths(data)
+    raw = np.load(d / "data" / f"measurements_{which}.npz")
+    rec = im.load_npz(d / "data" / f"measurements_{which}.npz")
+    joints = list(load_drives(drives).joints)
+    if mass:
+        rec.torque = rec.torque + payload_torque(urdf, joints, raw["positions"], raw["velocities"],
+                                                 raw["accelerations"], mass, com)
+    if decimate > 1:
+        rec.t, rec.position, rec.torque = rec.t[::decimate], rec.position[::decimate], rec.torque[::decimate]
+    return im.write_log(rec, urdf, drives, out, robot="kuka_lwr4", rate=200.0 / decimate, positions_side="joint",
+                        trials=trials)
+
+
+def diagnose_cli(model: Path, log: Path, out: Path) -> dict:
+    """The plain command: js2-diagnose MODEL LOG -o OUT (no flags); diagnosis.json."""
+    from diagnosis.cli import main as diagnose_main
+
+    rc = diagnose_main([str(model), str(log), "-o", str(out), "-q"])
+    if rc != 0:
+        raise SystemExit(f"js2-diagnose failed ({rc}) on {log}")
+    return json.loads((out / "diagnosis.json").read_text())
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    ap.add_argument("--out", type=Path, default=Path("runs/prove_diagnosis_real"))
+    a = ap.parse_args(argv)
+    if not (a.data / "kuka_lwr4").is_dir():
+        print(f"prove_diagnosis_real: error: {a.data / 'kuka_lwr4'}: not found; pass --data", file=sys.stderr)
+        return 2
+    logs = import_logs(a.data, a.out)
+    model = identify(logs[0], a.out / "model")
+    rows = []
+    for lg in logs:
+        d = diagnose_cli(model, lg, a.out / f"diag_{lg.stem}")
+        named = [f"{f['kind']} on {f['joint']}" for f in d["findings"]]
+        rows.append({"recording": lg.name, "added": "nothing", "verdict": d["verdict"].split(":")[0],
+                     "named": named, "unexplained": [u["joint"] for u in d["unexplained"]]})
+    for which, dec in ((2, 1), (2, 2), (1, 1), (3, 1)):
+        lg = payload_log(a.data, a.out / f"kuka_{which}_payload_{200 // dec}hz.mcap", which=which, decimate=dec)
+        d = diagnose_cli(model, lg, a.out / f"diag_{lg.stem}")
+        pay = [f for f in d["findings"] if f["kind"] == "payload_change"]
+        rows.append({"recording": lg.name, "added": f"{PAYLOAD_MASS} kg at {list(PAYLOAD_COM)} m on the hand",
+                     "verdict": d["verdict"].split(":")[0], "named": [f"{f['kind']} on {f['joint']}"
+                                                                     for f in d["findings"]],
+                     "mass": pay[0]["effect"]["mass"] if pay else None,
+                     "com": pay[0]["effect"]["com"] if pay else None,
+                     "report_gain": pay[0]["holdout_gain"] if pay else None,
+                     "unexplained": [u["joint"] for u in d["unexplained"]]})
+    for r in rows:
+        extra = (f"  mass {r['mass']:.3f} kg (error {abs(r['mass'] - PAYLOAD_MASS) / PAYLOAD_MASS:.1%}), com "
+                 f"{np.round(r['com'], 3).tolist()} m, report gain {r['report_gain']:.1%}" if r.get("mass") else "")
+        print(f"{r['recording']:<26} added: {r['added']:<40} named: {', '.join(r['named']) or 'nothing':<40} "
+              f"unexplained: {', '.join(r['unexplained']) or '-'}{extra}")
+    (a.out / "summary.json").write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
