@@ -68,10 +68,19 @@ def main(argv=None) -> int:
                           min_gain=args.min_gain, max_terms=args.max_terms, min_speed=args.min_speed,
                           progress=not args.quiet and sys.stderr.isatty())
     try:
+        from js2spec.files import check_output_folder
+        check_output_folder(args.outdir)
         res = diagnose(args.model, args.recording, opt)
         paths = write_outputs(res, args.outdir)
     except Js2Error as exc:
-        print(f"js2-diagnose: error: {exc}", file=sys.stderr)
+        from js2spec.log import damage_notes
+        notes = damage_notes([args.recording])
+        why = f" (note: {'; '.join(notes)}: what is missing may have been in the lost part)" if notes else ""
+        print(f"js2-diagnose: error: {exc}{why}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"js2-diagnose: error: cannot write {exc.filename or args.outdir}: {exc.strerror or exc}; choose "
+              f"another -o", file=sys.stderr)
         return 2
     d = res.to_dict()
     for n in d["notes"]:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .errors import ConfigError
+from .errors import ConfigError, Js2Error
 
 
 def read_text(path: str | Path, what: str = "file") -> str:
@@ -37,3 +37,15 @@ def load_yaml(path: str | Path, what: str = "YAML file"):
         return yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise ConfigError(path, None, f"is not valid YAML ({str(exc).splitlines()[0]})") from None
+
+
+def check_output_folder(path: str | Path, flag: str = "-o") -> None:
+    """Refuse, before any computation, an output folder that cannot be written: a file in its place, or no
+    writable folder to create it in."""
+    import os
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise Js2Error(f"{flag} {out}: is a file; give a folder for the outputs")
+    probe = out if out.is_dir() else next((p for p in out.parents if p.exists()), Path("."))
+    if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
+        raise Js2Error(f"{flag} {out}: {probe} is not a writable folder; choose another {flag}")

@@ -140,3 +140,13 @@ def test_identify_error_on_a_cut_log_mentions_the_cut(tmp_path, capsys, good_log
     rc = main([str(cut), "-o", str(tmp_path / "o"), "-q", "--no-report"])
     line = _one_line(capsys, rc, "js2-identify", cut)
     assert "truncated" in line and "lost part" in line, line
+
+
+def test_diagnose_output_checked_first(tmp_path, capsys, good_log):
+    """`js2-diagnose -o` a file: refused in one line before the (long) diagnosis, not after it."""
+    from diagnosis.cli import main
+    f = tmp_path / "afile"
+    f.write_text("x")
+    rc = main([str(tmp_path / "no-model.yaml"), str(good_log), "-o", str(f), "-q"])
+    assert "is a file" in _one_line(capsys, rc, "js2-diagnose", f)
+    assert f.read_text() == "x"

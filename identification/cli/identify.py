@@ -88,19 +88,6 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def check_outdir(path) -> None:
-    """Refuse, before any computation, an output folder that cannot be written (a file, an unwritable parent)."""
-    import os
-
-    from js2spec.errors import Js2Error
-    out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise Js2Error(f"-o {out}: is a file; give a folder for the outputs")
-    probe = out if out.is_dir() else next((p for p in out.parents if p.exists()), Path("."))
-    if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
-        raise Js2Error(f"-o {out}: {probe} is not a writable folder; choose another -o")
-
-
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
     from js2spec.errors import Js2Error
@@ -109,7 +96,8 @@ def main(argv=None) -> int:
     from identification.signals import FilterSettings
 
     try:
-        check_outdir(args.outdir)
+        from js2spec.files import check_output_folder
+        check_output_folder(args.outdir)
         opt = IdentifyOptions(
             method=args.method,
             filters=None if args.fc_velocity is None and args.fc_acceleration is None else
