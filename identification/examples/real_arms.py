@@ -104,6 +104,11 @@ def run_tx40(data: Path, work: Path, progress: bool = False) -> dict:
     # our motor-side drive terms as joint-side equivalents (axes 1-5 exact; motor 6 <-> FIGAROH's *m6 terms)
     mr = ident.model
     ja, _, alone = ident.motor_inertia()
+    # separately identifiable J_a: the unconstrained estimate, like FIGAROH-plus's OLS values (the exported model's
+    # J_a comes from the physically consistent fit, which trades them against the link inertias)
+    for k in range(6):
+        if alone[k]:
+            ja[k] = mr.beta[ident.param_index(f"Ja_{k + 1}")]
     off = np.array([mr.beta[ident.param_index(f"off_{k + 1}")] for k in range(6)])
     ours = {"fv": ident.friction_viscous * N ** 2, "fs": ident.friction_coulomb * np.abs(N), "Ia": ja * N ** 2,
             "off_motor": off, "alone": alone}
