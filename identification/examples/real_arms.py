@@ -117,7 +117,7 @@ def run_tx40(data: Path, work: Path, progress: bool = False) -> dict:
                "Ia": [None, None] + [bpf.get(f"Ia{k}") for k in range(3, 6)] + [bpf.get("Iam6")]}
     pub_cfg = {"fv": list(pub["fv"][:5]) + [pub["fvm6"]], "fs": list(pub["fs"][:5]) + [pub["fsm6"]],
                "Ia": list(pub["Ia"][:5]) + [pub["Iam6"]]}
-    return {"ident": ident, "rms": ident.validation["rms"], "nrms": ident.validation["nrms"],
+    return {"ident": ident, "rms": ident.validation[ident.chosen]["rms"], "nrms": ident.validation[ident.chosen]["nrms"],
             "rms_physical": ident.validation["physical"]["rms"] if "physical" in ident.validation else None,
             "rms_published": r_pub, "rms_cad_refit": r_cad, "ours": ours, "figaroh_bp": pub_fig,
             "figaroh_cfg": pub_cfg, "N": N}
@@ -153,7 +153,7 @@ def run_kuka(data: Path, work: Path, progress: bool = False) -> dict:
             fixed[f"fc_{k}"] = float(dyn.get("friction", 0))
     refs["FloBaRoID identified URDF as published (its damping/friction, offsets refitted)"] = reference_rms(
         ident, (pubdir / "kuka_lwr4_identified.urdf").read_text(), fixed=fixed, refit=True)[0]
-    return {"ident": ident, "rms": ident.validation["rms"], "nrms": ident.validation["nrms"],
+    return {"ident": ident, "rms": ident.validation[ident.chosen]["rms"], "nrms": ident.validation[ident.chosen]["nrms"],
             "rms_physical": ident.validation["physical"]["rms"] if "physical" in ident.validation else None,
             "refs": refs, "flobaroid_cad_friction_rms": FLOBAROID_CAD_FRICTION_RMS}
 
