@@ -79,7 +79,8 @@ def parser() -> argparse.ArgumentParser:
                         "Ixx_link4)")
     p.add_argument("--prior-weight", type=float, default=None,
                    help="how strongly the physically consistent model is pulled toward the URDF's inertials where "
-                        "the data are weak (default: chosen by cross-validation on the fit data; 0 = data only)")
+                        "the data are weak (default: 1 for the mixed method, chosen by cross-validation on the fit data for "
+                        "the simultaneous method; 0 = data only)")
     p.add_argument("--max-cond", type=float, default=None, help="verdict threshold on the condition number")
     p.add_argument("--max-nrms", type=float, default=None, help="verdict threshold on validation NRMS per axis (0.1 = 10%%)")
     p.add_argument("--strict", action="store_true", help="exit 1 when the verdict fails")
