@@ -205,3 +205,12 @@ def test_bench_load_never_inherits_real_time_scheduling():
             "b.stop_load(p)\n")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert out.stdout.strip() == f"True {list(range(os.cpu_count()))}", out.stdout + out.stderr
+
+
+def test_bench_bus_limit_from_the_eds_layout():
+    """The README's bus limit: SYNC + 6 x RPDO1 (4 B) + 6 x TPDO1 (8 B) at 1 Mbit/s, worst-case stuffing."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_acquire as b
+    lim, bits, sizes = b.bus_limit_hz(ROBOT)
+    assert sizes == (4, 8) and bits == 1435 and round(lim) == 697 and round(0.9 * lim) == 627
+    assert round(b.bus_limit_hz(ROBOT, worst=False)[0]) == 842
