@@ -139,8 +139,10 @@ class Stribeck(Term):
     kind, hyper_name, extends = "stribeck", "(velocity, shape)", ("friction_refit",)
 
     def grid(self, rd, j):
-        lo = 2.0 * float(rd.min_speed_motor[j]) if rd.min_speed_motor is not None else 2.0
-        return [(float(v), d) for v in np.geomspace(lo, 30 * lo, 13) for d in STRIBECK_SHAPES]
+        """v_s from 2.5x the motor's --min-speed threshold (below, a fitted hump is the friction step at reversals
+        that the torque filter smears, not a Stribeck curve) to 60x, and the shapes 0.5, 1, 2."""
+        lo = 2.5 * float(rd.min_speed_motor[j]) if rd.min_speed_motor is not None else 2.5
+        return [(float(v), d) for v in np.geomspace(lo, 24 * lo, 13) for d in STRIBECK_SHAPES]
 
     def columns(self, rd, j, h):
         v, d = h
@@ -152,10 +154,8 @@ class Stribeck(Term):
     def effect(self, rd, j, h, coef, std):
         v, d = h
         fc = float(rd.extra["model"].friction_coulomb[j])
-        lowest = v <= self.grid(rd, j)[0][0] * 1.0001
-        ok = coef[0] > 3 * std[0] and not lowest
-        why = ("" if ok else "Stribeck velocity at the lowest speed tried: what it fits is the friction step at "
-               "reversals, not a resolved Stribeck curve" if lowest else "fitted low-speed excess is not positive")
+        ok = coef[0] > 3 * std[0]
+        why = "" if ok else "fitted low-speed excess is not positive"
         h = v
         return ({"kind": self.kind, "joints": [j], "velocity": float(v), "shape": float(d)},
                 f"friction rises below ~{h:.2g} rad/s (motor): static friction {fc + coef[0]:.4g} N*m against "
