@@ -4,19 +4,22 @@ The paper (Sakamoto et al., Fig. 3): with B and f_c estimated inside the RLS (si
 elsewhere than with them fixed from the sequential tests (mixed method), and J_4z — the inertia of link 4 about
 axis 4 — converges positive under the mixed method and negative under the simultaneous one.
 
-This script sweeps the quantities that can decide that sign, on the built-in simulator, through the same commands a
+This script varies the quantities that can decide that sign, on the built-in simulator, through the same commands a
 user runs: ``js2-acquire --direct`` (static, velocity, acceleration and validation trials on a variant of
 ``configs/js2/`` written to a temporary folder) and the identification pipeline of ``js2-identify`` (in-process:
 ``identification.pipeline.identify``), both methods, several seeds per point:
 
 * J_4z's share of the inertia motor 4 feels, ``share = K44^2 J_4z / (J_a4 + K44^2 M44)`` (M44 at the acceleration
   trial's centre): the axis-4 gear ratio
-  (``--gear4``; 1:50 on the default arm) and the inertia of the wrist link 4 (``--wrist``: link 4's inertia tensor
-  scaled, mass and centre of mass kept);
-* the friction's departure from eq. 1's Coulomb + viscous law (``--friction``): ``eq1`` (none), ``stribeck``,
+  (N4; 1:50 on the default arm) and the inertia of the wrist link 4 (WRIST: link 4's inertia tensor scaled, mass
+  and centre of mass kept);
+* the friction's departure from eq. 1's Coulomb + viscous law (FRICTION): ``eq1`` (none), ``stribeck``,
   ``load`` (load-dependent Coulomb friction), ``asym`` (asymmetric), ``stribeck+load``; on axis 4 only or on every
-  axis (``--friction-axes``), at the strengths in ``FRICTION`` below;
-* the current noise (``--noise``: multiple of ``sim_truth.yaml``'s ``current_noise_std``).
+  axis (AXES ``4`` or ``all``), at the strengths in ``FRICTION`` below;
+* the current noise (NOISE: multiple of ``sim_truth.yaml``'s ``current_noise_std``).
+
+The default map (``full_grid``) varies the gear and the friction; the wrist inertia and the noise are knobs of
+``--point N4:WRIST:FRICTION:AXES:NOISE`` for further points.
 
 Each point is classified from its seeds (mean ± standard error of the mean over seeds, and the RLS standard errors):
 
@@ -24,7 +27,8 @@ Each point is classified from its seeds (mean ± standard error of the mean over
   ``Z`` (= 2) standard errors (the larger of the seed scatter's s.e.m. and one session's RLS std);
 * ``agree_positive`` / ``agree_negative``: both methods give the same sign (positive, as the truth; or both negative,
   physically impossible), each resolved from zero by ``Z`` standard errors;
-* ``unidentifiable``: at least one method's J_4z is within ``Z`` standard errors of zero (its sign is noise);
+* ``unidentifiable``: at least one method's J_4z is within ``Z`` standard errors of zero or changes sign between
+  seeds (its sign is noise, or decided by the session);
 * ``opposite``: resolved, different signs, but not in the paper's direction (mixed < 0 < simultaneous).
 
 Outputs (``--out``, default ``runs/fig3_study``): ``map.json`` and ``map.csv`` (one row per point: the knobs, the
@@ -33,7 +37,7 @@ paper's Fig. 3 (RLS convergence of J_4z, B_4, f_c4 under both methods, one seed)
 each region (the one with the largest J_4z share; ``fig3_study_<region>.png``, ``fig3_study_quick_<region>.png``
 with ``--quick``). Logs are kept in ``--out`` and reused when the run is repeated.
 
-    python scripts/fig3_study.py --figdir docs/img            # the map of the README (~15 min on one core)
+    python scripts/fig3_study.py --figdir docs/img            # the map of the README (~16 min of one core)
     python scripts/fig3_study.py --quick                      # the three points the test pins, one seed, short trials
 """
 from __future__ import annotations
@@ -195,7 +199,9 @@ def acquire(robot: Path, seed: int, out: Path, trials: str = TRIALS) -> None:
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         out.unlink(missing_ok=True)     # never reuse an aborted session
-        fail(f"js2-acquire failed for {robot}: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
+        said = (r.stdout + r.stderr).strip().splitlines()
+        last = [ln for ln in said if "ABORTED" in ln or "error" in ln] or said[-1:] or [f"exit {r.returncode}"]
+        fail(f"js2-acquire failed for {robot.name} (seed {seed}): {last[-1]}")
 
 
 # -- identification ----------------------------------------------------------------------------------------------
