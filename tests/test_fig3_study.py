@@ -67,6 +67,8 @@ def test_truth_and_share_follow_the_knobs(quick_map):
     n50, n10 = quick_map["N50_w1_stribeck-load_ax4_n1"], quick_map["N10_w1_eq1_ax4_n1"]
     assert abs(n50["share"] - 0.04) <= 0.005 and abs(n10["share"] - 0.45) <= 0.005
     assert abs(n10["J_4z_truth"] - 1.0e-3) <= 0.05e-3
+    for m in ("mixed", "simultaneous"):          # README: within one standard error of the truth at 1:10, eq. 1
+        assert abs(n10[f"J_4z_{m}"] - n10["J_4z_truth"]) <= n10[f"J_4z_{m}_se"]
     assert all(abs(r["B_4_truth"] - 8.0e-5) < 1e-12 for r in quick_map.values())
 
 
