@@ -4,19 +4,22 @@ The paper (Sakamoto et al., Fig. 3): with B and f_c estimated inside the RLS (si
 elsewhere than with them fixed from the sequential tests (mixed method), and J_4z — the inertia of link 4 about
 axis 4 — converges positive under the mixed method and negative under the simultaneous one.
 
-This script sweeps the quantities that can decide that sign, on the built-in simulator, through the same commands a
+This script varies the quantities that can decide that sign, on the built-in simulator, through the same commands a
 user runs: ``js2-acquire --direct`` (static, velocity, acceleration and validation trials on a variant of
 ``configs/js2/`` written to a temporary folder) and the identification pipeline of ``js2-identify`` (in-process:
 ``identification.pipeline.identify``), both methods, several seeds per point:
 
 * J_4z's share of the inertia motor 4 feels, ``share = K44^2 J_4z / (J_a4 + K44^2 M44)`` (M44 at the acceleration
   trial's centre): the axis-4 gear ratio
-  (``--gear4``; 1:50 on the default arm) and the inertia of the wrist link 4 (``--wrist``: link 4's inertia tensor
-  scaled, mass and centre of mass kept);
-* the friction's departure from eq. 1's Coulomb + viscous law (``--friction``): ``eq1`` (none), ``stribeck``,
+  (N4; 1:50 on the default arm) and the inertia of the wrist link 4 (WRIST: link 4's inertia tensor scaled, mass
+  and centre of mass kept);
+* the friction's departure from eq. 1's Coulomb + viscous law (FRICTION): ``eq1`` (none), ``stribeck``,
   ``load`` (load-dependent Coulomb friction), ``asym`` (asymmetric), ``stribeck+load``; on axis 4 only or on every
-  axis (``--friction-axes``), at the strengths in ``FRICTION`` below;
-* the current noise (``--noise``: multiple of ``sim_truth.yaml``'s ``current_noise_std``).
+  axis (AXES ``4`` or ``all``), at the strengths in ``FRICTION`` below;
+* the current noise (NOISE: multiple of ``sim_truth.yaml``'s ``current_noise_std``).
+
+The default map (``full_grid``) varies the gear and the friction; the wrist inertia and the noise are knobs of
+``--point N4:WRIST:FRICTION:AXES:NOISE`` for further points.
 
 Each point is classified from its seeds (mean ± standard error of the mean over seeds, and the RLS standard errors):
 
@@ -24,15 +27,17 @@ Each point is classified from its seeds (mean ± standard error of the mean over
   ``Z`` (= 2) standard errors (the larger of the seed scatter's s.e.m. and one session's RLS std);
 * ``agree_positive`` / ``agree_negative``: both methods give the same sign (positive, as the truth; or both negative,
   physically impossible), each resolved from zero by ``Z`` standard errors;
-* ``unidentifiable``: at least one method's J_4z is within ``Z`` standard errors of zero (its sign is noise);
+* ``unidentifiable``: at least one method's J_4z is within ``Z`` standard errors of zero or changes sign between
+  seeds (its sign is noise, or decided by the session);
 * ``opposite``: resolved, different signs, but not in the paper's direction (mixed < 0 < simultaneous).
 
 Outputs (``--out``, default ``runs/fig3_study``): ``map.json`` and ``map.csv`` (one row per point: the knobs, the
 truth, per-method mean / seed s.e.m. / mean RLS std of J_4z, B_4, f_c4, the region), and with ``--figdir`` the
 paper's Fig. 3 (RLS convergence of J_4z, B_4, f_c4 under both methods, one seed) for the representative point of
-each region (``fig3_study_<region>.png``). Logs are kept in ``--out`` and reused when the run is repeated.
+each region (the one with the largest J_4z share; ``fig3_study_<region>.png``, ``fig3_study_quick_<region>.png``
+with ``--quick``). Logs are kept in ``--out`` and reused when the run is repeated.
 
-    python scripts/fig3_study.py --figdir docs/img            # the map of the README (~15 min on one core)
+    python scripts/fig3_study.py --figdir docs/img            # the map of the README (~16 min of one core)
     python scripts/fig3_study.py --quick                      # the three points the test pins, one seed, short trials
 """
 from __future__ import annotations
@@ -194,7 +199,9 @@ def acquire(robot: Path, seed: int, out: Path, trials: str = TRIALS) -> None:
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         out.unlink(missing_ok=True)     # never reuse an aborted session
-        fail(f"js2-acquire failed for {robot}: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
+        said = (r.stdout + r.stderr).strip().splitlines()
+        last = [ln for ln in said if "ABORTED" in ln or "error" in ln] or said[-1:] or [f"exit {r.returncode}"]
+        fail(f"js2-acquire failed for {robot.name} (seed {seed}): {last[-1]}")
 
 
 # -- identification ----------------------------------------------------------------------------------------------
@@ -267,6 +274,11 @@ def summarise(results: list[RunResult], z: float = Z) -> dict:
             row[f"{p}_{m}_std_rls"] = float(np.sqrt(np.mean(s ** 2)))
             row[f"{p}_{m}_se"] = float(np.nanmax([sem_seed, np.sqrt(np.mean(s ** 2))]))
             row[f"{p}_{m}_values"] = v.tolist()
+    # how far apart the methods are in one session, against how far apart the sessions are
+    d = np.array([r.methods["simultaneous"]["J_4z"].value - r.methods["mixed"]["J_4z"].value for r in results])
+    row["J_4z_sim_minus_mixed"] = float(d.mean())
+    row["J_4z_sim_minus_mixed_absmax"] = float(np.abs(d).max())
+    row["J_4z_mixed_sd_seeds"] = float(np.std(row["J_4z_mixed_values"], ddof=1)) if len(d) > 1 else float("nan")
     row["region"] = classify(row, z)
     return row
 
@@ -311,6 +323,22 @@ def write_outputs(rows: list[dict], out: Path) -> None:
             w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items() if k in cols})
 
 
+def markdown(rows: list[dict]) -> str:
+    """The map as the docs show it (J_4z in 1e-4 kg m^2: mean over seeds, each seed, one session's RLS std)."""
+    out = ["| axis-4 gear | friction beyond eq. 1 | J_4z share | J_4z truth | J_4z mixed: mean (seeds) ± RLS std | "
+           "J_4z simultaneous: mean (seeds) ± RLS std | B_4 mixed / simultaneous (1e-5 N m s/rad, truth 8.0) | "
+           "region |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        fr = "none" if r["friction"] == "eq1" else f"{r['friction']} (axis {r['friction_axes']})"
+        cells = []
+        for m in ("mixed", "simultaneous"):
+            seeds = ", ".join(f"{1e4 * v:+.1f}" for v in r[f"J_4z_{m}_values"])
+            cells.append(f"{1e4 * r[f'J_4z_{m}']:+.1f} ({seeds}) ± {1e4 * r[f'J_4z_{m}_std_rls']:.1f}")
+        out.append(f"| 1:{r['gear4']:g} | {fr} | {r['share']:.2f} | {1e4 * r['J_4z_truth']:.1f} | {cells[0]} | "
+                   f"{cells[1]} | {1e5 * r['B_4_mixed']:.1f} / {1e5 * r['B_4_simultaneous']:.1f} | {r['region']} |")
+    return "\n".join(out)
+
+
 def fig3_plot(run: RunResult, title: str):
     """The paper's Fig. 3 for one run: RLS convergence of J_4z, B_4, f_c4 under both methods, truth dashed."""
     import matplotlib
@@ -325,7 +353,7 @@ def fig3_plot(run: RunResult, title: str):
             it, h = run.history[m]
             y = np.asarray(h[p])
             a.plot(it, y, style, lw=1.2, label=f"{m}: {run.methods[m][p].value:.3g} ± {run.methods[m][p].std:.1g}")
-            tails.append(y[len(y) // 5:])
+            tails.append(y[len(y) // 2:])   # y-range from the converged half (early RLS steps swing wildly)
         a.axhline(run.truth[p], color="k", ls=":", lw=1, label=f"truth (eq. 1 part) {run.truth[p]:.3g}")
         if p == "J_4z":
             a.axhline(0.0, color="0.6", lw=0.6)
@@ -396,20 +424,28 @@ def _main(argv=None) -> int:
               f"simultaneous {row['J_4z_simultaneous']:+.3e} ± {row['J_4z_simultaneous_se']:.1e} "
               f"(truth {row['J_4z_truth']:.3e}) -> {row['region']}", flush=True)
     write_outputs(rows, a.out)
-    print(f"wrote {a.out / 'map.json'} and map.csv ({len(rows)} points, {time.perf_counter() - t0:.0f} s)")
+    print(markdown(rows))
+    import resource
+
+    cpu = sum(getattr(resource.getrusage(w), k) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)
+              for k in ("ru_utime", "ru_stime"))
+    print(f"wrote {a.out / 'map.json'} and map.csv ({len(rows)} points, {time.perf_counter() - t0:.0f} s wall, "
+          f"{cpu:.0f} s CPU including the js2-acquire sessions this run made)")
     if a.figdir:
         a.figdir.mkdir(parents=True, exist_ok=True)
         import matplotlib.pyplot as plt
 
-        done = set()
+        # representative point of a region: the one where J_4z is the largest share of what motor 4 feels (the
+        # most favourable to identifying it; the later in the grid on a tie), its first seed
+        rep = {}
         for row in rows:
-            reg = row["region"]
-            if reg in done:
-                continue
-            done.add(reg)
+            if row["share"] >= rep.get(row["region"], {"share": -1.0})["share"] - 1e-9:
+                rep[row["region"]] = row
+        for reg, row in rep.items():
             run = runs[row["key"]][0]
-            f = fig3_plot(run, f"Fig. 3, region '{reg}': {row['key']} (seed {run.seed}), J_4z share {row['share']:.2f}")
-            path = a.figdir / f"fig3_study_{reg}.png"
+            f = fig3_plot(run, f"Fig. 3, region '{reg}': {row['key']} (seed {run.seed}{', --quick' if a.quick else ''}),"
+                               f" J_4z share {row['share']:.2f}")
+            path = a.figdir / f"fig3_study_{'quick_' if a.quick else ''}{reg}.png"
             f.savefig(path, dpi=80, bbox_inches="tight")
             plt.close(f)
             print(f"wrote {path}")
