@@ -38,7 +38,7 @@ CASES = [
                                          "for the honest selection (docs/diagnosis.md)")),
     pytest.param("backlash", 0, {"width": 0.03, "stiffness": 3000.0, "damping": 3.0},
                  lambda e: 0.02 <= e["width"] <= 0.04,
-                 marks=pytest.mark.xfail(strict=True, reason="honest selection (FIT before SELECT in time): the play "
+                 marks=pytest.mark.xfail(strict=True, reason="honest selection (chosen on SELECT, not on the report rows): the play "
                                          "adds < 12 % on SELECT over the spring it contains; named joint_elasticity "
                                          "on the right joint (docs/diagnosis.md)")),
 ]
