@@ -130,19 +130,20 @@ class TorqueOffset(Term):
                 f"motor {j + 1}'s torque is offset by {coef[0]:+.3g} N*m from the model's", True, "")
 
 
-STRIBECK_SHAPES = (0.5, 1.0, 2.0)
+STRIBECK_SHAPES = (2.0,)   # shapes 0.5 and 1 were tried: on clean simulated recordings they fit the friction step at
+                           # reversals (smeared by the torque filter) and named Stribeck on joints that had none
 
 
 class Stribeck(Term):
-    """Friction rising below v_s: f_c + (f_s - f_c) exp(-(|w|/v_s)^delta) (hil_sim's form); v_s and the shape delta
-    on a grid (fit rows), f_s - f_c by least squares."""
+    """Friction rising below v_s: f_c + (f_s - f_c) exp(-(|w|/v_s)^delta) (hil_sim's form); v_s on a grid (fit rows),
+    delta = 2 (see STRIBECK_SHAPES), f_s - f_c by least squares."""
     kind, hyper_name, extends = "stribeck", "(velocity, shape)", ("friction_refit",)
 
     def grid(self, rd, j):
-        """v_s from 2.5x the motor's --min-speed threshold (below, a fitted hump is the friction step at reversals
-        that the torque filter smears, not a Stribeck curve) to 60x, and the shapes 0.5, 1, 2."""
-        lo = 2.5 * float(rd.min_speed_motor[j]) if rd.min_speed_motor is not None else 2.5
-        return [(float(v), d) for v in np.geomspace(lo, 24 * lo, 13) for d in STRIBECK_SHAPES]
+        """v_s from 2x the motor's --min-speed threshold to 60x; a best fit at the lowest is refused (what it fits is
+        the friction step at reversals that the torque filter smears, not a Stribeck curve)."""
+        lo = 2.0 * float(rd.min_speed_motor[j]) if rd.min_speed_motor is not None else 2.0
+        return [(float(v), d) for v in np.geomspace(lo, 30 * lo, 13) for d in STRIBECK_SHAPES]
 
     def columns(self, rd, j, h):
         v, d = h
@@ -154,11 +155,12 @@ class Stribeck(Term):
     def effect(self, rd, j, h, coef, std):
         v, d = h
         fc = float(rd.extra["model"].friction_coulomb[j])
-        ok = coef[0] > 3 * std[0]
-        why = "" if ok else "fitted low-speed excess is not positive"
-        h = v
+        lowest = v <= self.grid(rd, j)[0][0] * 1.0001
+        ok = coef[0] > 3 * std[0] and not lowest
+        why = ("" if ok else "Stribeck velocity at the lowest speed tried: what it fits is the friction step at "
+               "reversals, not a resolved Stribeck curve" if lowest else "fitted low-speed excess is not positive")
         return ({"kind": self.kind, "joints": [j], "velocity": float(v), "shape": float(d)},
-                f"friction rises below ~{h:.2g} rad/s (motor): static friction {fc + coef[0]:.4g} N*m against "
+                f"friction rises below ~{v:.2g} rad/s (motor): static friction {fc + coef[0]:.4g} N*m against "
                 f"Coulomb {fc:.4g} N*m", ok, why)
 
 

@@ -2,7 +2,7 @@
 report on rows the search never saw (honest proof in three parts: fit, select, report; see ``diagnosis.residual``).
 
 Per candidate (term, joint):
-1. hyper-parameter (Stribeck velocity and shape, cogging period count, thermal time constant, backlash width) and
+1. hyper-parameter (Stribeck velocity, cogging period count, thermal time constant, backlash width) and
    coefficients by weighted least squares on the *fit* rows of the motors the term can move (each motor's residual
    scaled by its baseline RMS on the fit rows, so small wrist motors count as much as the shoulder);
 2. select gain: 1 - SSE_with_term / SSE_without on the *select* rows (its motors; and over all motors, which ranks
