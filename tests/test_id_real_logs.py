@@ -32,7 +32,10 @@ def _log(tmp_path, arm: str, rate: float, torque_scale: float = 1.0):
     q = int(round(fs0 / rate))
     tau = decimate(rec.torque, q, ftype="fir", zero_phase=True, axis=0) if q > 1 else rec.torque
     r = im.Recording(rec.t[::q], rec.position[::q], torque_scale * tau, source=f"{arm} at {rate:g} Hz")
-    return im.write_log(r, urdf, drives, tmp_path / f"{arm}_{rate:g}.mcap", rate=rate, positions_side=side)
+    # js2-import refuses a unit-looking factor itself (tests/test_id_import_validation.py); a scaled log is written
+    # here with that check off, as --no-unit-check would, so that the verdict's own check is what is tested
+    return im.write_log(r, urdf, drives, tmp_path / f"{arm}_{rate:g}.mcap", rate=rate, positions_side=side,
+                        unit_check=torque_scale == 1.0)
 
 
 def _identify(tmp_path, log, *extra):
