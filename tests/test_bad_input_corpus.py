@@ -150,3 +150,27 @@ def test_diagnose_output_checked_first(tmp_path, capsys, good_log):
     rc = main([str(tmp_path / "no-model.yaml"), str(good_log), "-o", str(f), "-q"])
     assert "is a file" in _one_line(capsys, rc, "js2-diagnose", f)
     assert f.read_text() == "x"
+
+
+@pytest.mark.parametrize("kind", LOG_KINDS)
+def test_diagnose_bad_recording(tmp_path, capsys, good_log, kind):
+    """A bad recording given to js2-diagnose (with a model it would otherwise need): one line naming it."""
+    from diagnosis.cli import main
+    p = _bad_log(tmp_path, kind, good_log)
+    model = tmp_path / "model.yaml"
+    model.write_text("joints: [j1]\n")      # never reached when the recording is refused first, else refused itself
+    rc = main([str(model), str(p), "-o", str(tmp_path / "d"), "-q"])
+    out = capsys.readouterr()
+    assert rc == 2 and "Traceback" not in out.err and out.err.count("\n") == 1, out.err
+    assert out.err.startswith("js2-diagnose: error:")
+
+
+@pytest.mark.parametrize("name", ["robot.urdf", "drives.yaml", "sim_truth.yaml", "drives.eds"])
+def test_sim_bad_robot_folder(tmp_path, capsys, name):
+    from hil_sim.cli import main
+    folder = tmp_path / "arm"
+    shutil.copytree(JS2, folder)
+    (folder / name).write_bytes(LATIN1)
+    rc = main(["--robot", str(folder)])
+    line = _one_line(capsys, rc, "js2-sim", folder)
+    assert "UTF-8" in line
