@@ -3,7 +3,7 @@
 K = I, no trial labels), with the plain commands.
 
 1. js2-import (identification.examples.real_arms.import_kuka) -> kuka_1..3.mcap;
-2. js2-identify --method simultaneous --fit-trials excitation --offsets on kuka_1 (a model with friction.static
+2. js2-identify --method simultaneous --fit-trials excitation --offsets --no-sqrt-viscous --prior-weight 1 on kuka_1 (a model with friction.static
    null, joint-side torques);
 3. clean: js2-diagnose MODEL kuka_i.mcap -o DIR on each recording -> must say none or unexplained, never a named
    effect;
@@ -72,8 +72,10 @@ def identify(log: Path, out: Path) -> Path:
     from identification.cli.identify import main as identify_main
 
     if not (out / "model.yaml").is_file():
+        # the model the proof was measured with: the simultaneous method with offsets, no sqrt-viscous term (the
+        # diagnosis' prediction does not carry it yet) and the URDF prior at weight 1 (not cross-validated)
         rc = identify_main([str(log), "-o", str(out), "--method", "simultaneous", "--fit-trials", "excitation",
-                            "--offsets", "--no-report", "-q"])
+                            "--offsets", "--no-sqrt-viscous", "--prior-weight", "1", "--no-report", "-q"])
         if rc != 0:
             raise SystemExit(f"js2-identify failed ({rc})")
     return out
