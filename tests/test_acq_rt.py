@@ -54,19 +54,7 @@ def test_threaded_log_writes_the_same_log(tmp_path):
     assert a.events == b.events
 
 
-class FullDisk:
-    def __init__(self, f, limit):
-        self.f, self.limit, self.written = f, limit, 0
-
-    def write(self, b):
-        import errno
-        if self.written + len(b) > self.limit:
-            raise OSError(errno.ENOSPC, "No space left on device")
-        self.written += len(b)
-        return self.f.write(b)
-
-    def __getattr__(self, name):
-        return getattr(self.f, name)
+from test_acq_faults import FullDisk  # noqa: E402 - the same out-of-space file object as the unthreaded test
 
 
 def test_threaded_log_full_disk_still_stops_and_disables(tmp_path):
