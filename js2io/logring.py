@@ -177,7 +177,7 @@ class RingLog:
         if self.error is None:
             self.writer.close()
         else:
-            self._abandon_file()
+            self.writer.abandon()
 
     def abandon(self) -> None:
         """After a failed write: stop the thread, close the file without the footer (the reader recovers chunks)."""
@@ -185,14 +185,4 @@ class RingLog:
             return
         self._join()
         self.closed = True
-        self._abandon_file()
-
-    def _abandon_file(self) -> None:
-        w = self.writer
-        if getattr(w, "closed", False):
-            return
-        try:
-            w.closed = True
-            w._file.close()
-        except Exception:   # noqa: BLE001 - the file object itself is broken; nothing more to save
-            pass
+        self.writer.abandon()

@@ -99,14 +99,7 @@ class GuardedLog:
                 return
         except Exception as e:   # noqa: BLE001
             self.error = f"log could not be closed: {one_line(e)}"
-        if hasattr(w, "abandon"):    # RingLog: stops its thread, then the same as below
-            w.abandon()
-            return
-        try:
-            w.closed = True
-            w._file.close()
-        except Exception:   # noqa: BLE001 - the file object itself is broken; nothing more to save
-            pass
+        w.abandon()                  # LogWriter, or RingLog (stops its thread first)
 
 
 @dataclass

@@ -217,6 +217,17 @@ class LogWriter:
         self._file.close()
         self.closed = True
 
+    def abandon(self) -> None:
+        """After a failed write: close the file without the footer (the reader recovers the complete chunks,
+        `js2-repair` rewrites it). Never raises."""
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self._file.close()
+        except Exception:   # noqa: BLE001 - the file object itself is broken; nothing more to save
+            pass
+
     def __enter__(self) -> "LogWriter":
         return self
 

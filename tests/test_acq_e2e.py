@@ -189,18 +189,24 @@ def test_killed_writer_leaves_readable_log(tmp_path):
     assert [e["kind"] for e in log.events][:1] == ["trial_start"]
 
 
+def _acquire_velocity_until_logging(port, out):
+    """js2-acquire's velocity trial against the js2-sim at `port`, returned once its log holds 100 kB (mid-trial)."""
+    acq = subprocess.Popen([str(BIN / "js2-acquire"), "-i", "socketcand", "-c", "js2", "--bus-arg", f"port={port}",
+                            "--trial", "velocity", "-o", str(out), "--no-progress"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t_end = time.monotonic() + 60
+    while time.monotonic() < t_end and (not out.exists() or out.stat().st_size < 100_000):
+        time.sleep(0.05)
+    return acq
+
+
 def test_simulator_process_killed_mid_trial(tmp_path):
     """The far side vanishes (js2-sim SIGKILLed): the master notices (lost TPDOs / heartbeats / bus), stops safely,
     and the log is complete with the reason."""
     sim, port = _start_sim()
     out = tmp_path / "gone.mcap"
-    acq = subprocess.Popen([str(BIN / "js2-acquire"), "-i", "socketcand", "-c", "js2", "--bus-arg", f"port={port}",
-                            "--trial", "velocity", "-o", str(out), "--no-progress"],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    acq = _acquire_velocity_until_logging(port, out)
     try:
-        t_end = time.monotonic() + 60
-        while time.monotonic() < t_end and (not out.exists() or out.stat().st_size < 100_000):
-            time.sleep(0.05)
         sim.kill()
         so, se = acq.communicate(timeout=120)
     finally:
@@ -249,13 +255,8 @@ def test_simulator_frozen_mid_trial(tmp_path):
     from js2io import cia402
     sim, port = _start_sim()
     out = tmp_path / "frozen.mcap"
-    acq = subprocess.Popen([str(BIN / "js2-acquire"), "-i", "socketcand", "-c", "js2", "--bus-arg", f"port={port}",
-                            "--trial", "velocity", "-o", str(out), "--no-progress"],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    acq = _acquire_velocity_until_logging(port, out)
     try:
-        t_end = time.monotonic() + 60
-        while time.monotonic() < t_end and (not out.exists() or out.stat().st_size < 100_000):
-            time.sleep(0.05)
         sim.send_signal(signal.SIGSTOP)
         so, se = acq.communicate(timeout=120)
         sim.send_signal(signal.SIGCONT)
