@@ -12,6 +12,7 @@ EPILOG = """\
 examples:
   js2-diagnose runs/model/model.yaml runs/recording.mcap -o runs/diagnosis
   js2-diagnose runs/model runs/recording.mcap -o out --kinds stribeck cogging --min-gain 0.2
+  js2-diagnose runs/model part1.mcap part2.mcap part3.mcap -o out    (one session recorded over three files)
 
 what it does:
   1. predicts the recording's motor torques with the model (eq. 1, the identified URDF + model.yaml friction,
@@ -37,8 +38,9 @@ def build_parser() -> argparse.ArgumentParser:
                                 description="Locate and name the physics an identified model leaves out, model it, "
                                             "and show the fit improve on held-out data.", epilog=EPILOG)
     p.add_argument("model", help="model.yaml written by js2-identify (or its folder)")
-    p.add_argument("recording", help="a js2 log (MCAP) of the same arm, ideally with 'excitation' and "
-                                     "'validation' trials")
+    p.add_argument("recordings", nargs="+", metavar="LOG",
+                   help="js2 log(s) (MCAP) of the same arm, ideally with 'excitation' and 'validation' trials; "
+                        "several files are one session recorded in parts, joined in the order given")
     p.add_argument("-o", "--outdir", required=True, help="folder for the outputs (created)")
     p.add_argument("--holdout-trial", default="validation", help="trial held out for scoring (default: validation)")
     p.add_argument("--fit-trial", action="append", dest="fit_trials", metavar="TRIAL",
@@ -70,11 +72,11 @@ def main(argv=None) -> int:
     try:
         from js2spec.files import check_output_folder
         check_output_folder(args.outdir)
-        res = diagnose(args.model, args.recording, opt)
+        res = diagnose(args.model, args.recordings, opt)
         paths = write_outputs(res, args.outdir)
     except Js2Error as exc:
         from js2spec.log import damage_notes
-        notes = damage_notes([args.recording])
+        notes = damage_notes(args.recordings)
         why = f" (note: {'; '.join(notes)}: what is missing may have been in the lost part)" if notes else ""
         print(f"js2-diagnose: error: {exc}{why}", file=sys.stderr)
         return 2

@@ -123,7 +123,7 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
                  f"{m['holdout_drop']:.0%}" if m["holdout_drop"] is not None else "–", m["worst_regime"] or "–",
                  "yes" if m["flagged"] else ""] for m in d["location"]["motors"]]
     body = [f"<h1>js2 diagnosis</h1><p><b>Model</b> {html.escape(d['model'])}<br><b>Recording</b> "
-            f"{html.escape(d['recording'])}<br><b>Split</b> {html.escape(d['split'])}</p>",
+            f"{html.escape(', '.join(d['recordings']))}<br><b>Split</b> {html.escape(d['split'])}</p>",
             f"<h2>Verdict</h2><p>{html.escape(d['verdict'])}</p>",
             f"<h2>Where</h2><p>{html.escape(d['location']['text'])}</p>",
             html_table(["motor", "joint", "held-out RMS before (N m)", "after", "drop", "largest in", "mismatch"],

@@ -1,9 +1,10 @@
 """What the model predicts on a recording, and what it leaves: the residual, motor side (eq. 1).
 
 The prediction uses the exported model exactly as users load it: the identified URDF's inertial parameters, the
-motor inertias J_a, the friction B, f_c of ``model.yaml`` and its torque offsets when it has them (eq. 1), evaluated
+motor inertias J_a, the friction B, f_c of ``model.yaml`` (eq. 1), its torque offsets and its sqrt-viscous friction
+Bs sgn(v) sqrt|v| when it has them, evaluated
 on the recording's signals filtered as identification filters them (zero phase; the cut-offs of ``model.yaml``'s
-``filters``, kept below the recording's Nyquist frequency by :func:`choose_cutoffs`).
+``filters``, kept below the recording's Nyquist frequency by :func:`model_cutoffs`).
 
 Joint-side torques (``torque_side: joint``, torque sensors behind the gears, the model identified on that side) are
 predicted on the joint side and then carried to the motor side with K^T (tau_m = K^T tau_j), like every term of the
@@ -25,7 +26,8 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from identification.regressor import arm_model, build_regressor, standard_vector
-from identification.signals import FilterSettings, Signals, from_log
+from identification.signals import (NYQUIST_MARGIN, PAPER_FC_ACCELERATION_HZ, PAPER_FC_VELOCITY_HZ, FilterSettings,
+                                    Signals, choose_cutoffs, from_log)
 from identification.trials import trial_spans
 from js2spec.errors import Js2Error
 from js2spec.model import IdentifiedModel
@@ -97,18 +99,16 @@ class ResidualData:
         return out.reshape(shp)
 
 
-def choose_cutoffs(fs: float, model: IdentifiedModel | None = None) -> FilterSettings:
+def model_cutoffs(fs: float, model: IdentifiedModel | None = None) -> FilterSettings:
     """Filter cut-offs for a recording sampled at ``fs`` Hz: those the model was identified with (``model.yaml``
-    ``filters``; else the paper's 50 Hz velocity / 7 Hz acceleration), each kept at or below 0.4 fs so that any
-    sample rate filters (at 100 Hz: 40 Hz velocity, 7 Hz acceleration), the acceleration's never above the
-    velocity's."""
+    ``filters``; else the paper's 50 Hz velocity / 7 Hz acceleration), each kept at or below identification's
+    ``NYQUIST_MARGIN`` x Nyquist (0.4 fs: at 100 Hz, 40 Hz velocity, 7 Hz acceleration), the acceleration's never
+    above the velocity's; :func:`identification.signals.choose_cutoffs` checks them and says why (``reason``)."""
     f = (model.raw.get("filters") if model is not None else None) or {}
-    fv = float(f.get("velocity_cutoff_hz") or 50.0)
-    fa = float(f.get("acceleration_cutoff_hz") or 7.0)
-    top = 0.4 * fs
-    fv = min(fv, top)
-    fa = min(fa, fv, top)
-    return FilterSettings(fc_velocity_hz=fv, fc_acceleration_hz=fa, order=int(f.get("order") or 4))
+    top = NYQUIST_MARGIN * fs / 2
+    fv = min(float(f.get("velocity_cutoff_hz") or PAPER_FC_VELOCITY_HZ), top)
+    fa = min(float(f.get("acceleration_cutoff_hz") or PAPER_FC_ACCELERATION_HZ), fv)
+    return choose_cutoffs(fs, fc_velocity_hz=fv, fc_acceleration_hz=fa, order=int(f.get("order") or 4))
 
 
 def _trial_rows(log, t: np.ndarray, trial: str) -> np.ndarray:
@@ -173,7 +173,16 @@ def split_rows(log, t: np.ndarray, keep: np.ndarray, holdout_trial: str = "valid
 
 
 def _offsets(model: IdentifiedModel, n: int) -> np.ndarray:
-    """Constant torque offsets the model was identified with (base parameters ``off_<k>``), else zeros."""
+    """Constant torque offsets of the exported model: ``model.yaml`` ``torque_offset`` (those of the physically
+    consistent parameters the URDF holds, which the prediction uses); a model without that key: its base parameters
+    ``off_<k>``; else zeros. (The base values belong to the unconstrained fit: with the URDF's parameters they can be
+    N*m off — 2.7 N*m on a real KUKA shoulder.)"""
+    raw = model.raw.get("torque_offset")
+    if isinstance(raw, list) and len(raw) == n:
+        try:
+            return np.nan_to_num(np.asarray(raw, float))
+        except (TypeError, ValueError):
+            raise DiagnosisError(f"{model.path}: torque_offset must be a list of {n} numbers") from None
     off = np.zeros(n)
     for name, v in zip(model.base_names, model.base_values):
         if name.startswith("off_") and name[4:].isdigit() and 1 <= int(name[4:]) <= n and np.isfinite(v):
@@ -196,7 +205,7 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
         raise DiagnosisError(f"{log.path}: torque_side is {side!r} but {model.path} was identified on the "
                              f"{model_side!r} side; identify the model from recordings with {side}-side torques")
     arm = arm_model(model.urdf_text, drives, urdf_name=str(model.urdf_path))
-    sig = from_log(log, settings or choose_cutoffs(float(log.cycle_hz), model))
+    sig = from_log(log, settings or model_cutoffs(float(log.cycle_hz), model))
     N, n = sig.q_motor.shape
     K = np.asarray(drives.gear_ratio_matrix, float)
     good = np.all(np.isfinite(sig.q_motor), axis=1) & np.all(np.isfinite(sig.tau), axis=1)
@@ -215,12 +224,12 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
 
     pred_side = np.full((N, n), np.nan)
     fric_side = np.full((N, n), np.nan)
-    if side == "joint":
-        pred_side[rows] = np.einsum("snp,p->sn", W[:, :, nl:], pi[nl:]) + off
-        fric_side[rows] = np.einsum("snp,p->sn", W[:, :, 11 * n:], pi[11 * n:])
-    else:
-        pred_side[rows] = np.einsum("snp,p->sn", W[:, :, nl:], pi[nl:]) + off
-        fric_side[rows] = model.friction_viscous * dqm + model.friction_coulomb * np.sign(dqm)
+    # the model's friction on the log's side: B v + f_c sgn v (+ Bs sgn(v) sqrt|v| when identification kept it)
+    v_side = dqm @ K.T if side == "joint" else dqm
+    fsq = model.friction_sqrt_viscous if model.friction_sqrt_viscous is not None else np.zeros(n)
+    sqrt_term = fsq * np.sign(v_side) * np.sqrt(np.abs(v_side))
+    pred_side[rows] = np.einsum("snp,p->sn", W[:, :, nl:], pi[nl:]) + off + sqrt_term
+    fric_side[rows] = np.einsum("snp,p->sn", W[:, :, 11 * n:], pi[11 * n:]) + sqrt_term
     W_rigid = np.zeros((N, n, nl))
     W_rigid[rows] = W[:, :, :nl]
     del W

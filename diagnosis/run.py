@@ -5,7 +5,7 @@ import copy
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from js2spec.log import read_log
+from js2spec.log import join_logs, read_log
 from js2spec.model import IdentifiedModel, load_model
 
 from .locate import locate
@@ -32,6 +32,7 @@ class DiagnosisResult:
     search: MismatchSearch
     location: dict
     notes: list[str] = field(default_factory=list)
+    log_paths: list[Path] = field(default_factory=list)   # every file of the session (log_path is the first)
 
     @property
     def accepted(self) -> list[Scored]:
@@ -75,6 +76,7 @@ class DiagnosisResult:
                 runners.append(s.row(self.rd.joints))
         return {
             "model": str(self.model.path), "recording": str(self.log_path),
+            "recordings": [str(p) for p in (self.log_paths or [self.log_path])],
             "split": self.rd.split_note,
             "rows": {"fit": int(self.rd.fit_rows.sum()), "select": int(self.rd.select_rows.sum()),
                      "report": int(self.rd.holdout_rows.sum())},
@@ -129,7 +131,8 @@ class DiagnosisResult:
         """model.yaml extended with ``unmodelled:`` (the effects found, in hil_sim's effect format)."""
         d = copy.deepcopy(self.model.raw)
         d["unmodelled"] = [dict(f["effect"], holdout_gain=round(float(f["holdout_gain"]), 4),
-                                found_on=str(self.log_path)) for f in self.findings()]
+                                found_on=", ".join(str(p) for p in (self.log_paths or [self.log_path])))
+                              for f in self.findings()]
         return d
 
     def sim_effects(self) -> list[dict]:
@@ -137,13 +140,19 @@ class DiagnosisResult:
         return [dict(f["effect"]) for f in self.findings()]
 
 
-def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path,
+def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
              options: DiagnoseOptions | None = None) -> DiagnosisResult:
+    """Diagnose one recording, or one session recorded over several files (a list: joined in the order given,
+    each file filtered as its own run, :func:`js2spec.log.join_logs`)."""
     opt = options or DiagnoseOptions()
     mdl = model if isinstance(model, IdentifiedModel) else load_model(model)
-    log = read_log(log_path)
+    paths = [Path(p) for p in log_path] if isinstance(log_path, (list, tuple)) else [Path(log_path)]
+    log = join_logs([read_log(p) for p in paths])
     notes = []
-    if log.truncated:
+    if len(paths) > 1:
+        notes.append(f"one session over {len(paths)} files, joined in the order given (each filtered on its own): "
+                     + ", ".join(p.name for p in paths))
+    if log.truncated or log.recovered_note:
         notes.append(log.recovered_note)
     notes.extend(log.warnings)
     rd = residual_data(mdl, log, holdout_trial=opt.holdout_trial, fit_trials=opt.fit_trials,
@@ -165,4 +174,4 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path,
         notes.append(f"filters: {rd.signals.settings.fc_velocity_hz:g} Hz velocity, "
                      f"{rd.signals.settings.fc_acceleration_hz:g} Hz acceleration/torque (the model's cut-offs "
                      f"kept below 0.4 x the {rd.fs:g} Hz sample rate)")
-    return DiagnosisResult(model=mdl, log_path=Path(log_path), rd=rd, search=search, location=loc, notes=notes)
+    return DiagnosisResult(model=mdl, log_path=paths[0], log_paths=paths, rd=rd, search=search, location=loc, notes=notes)

@@ -41,6 +41,7 @@ class Scored:
     rms_after: np.ndarray
     band: str
     rejected: str = ""           # why the ladder did not accept it (empty: accepted or not reached)
+    note: str = ""               # why it was named instead of the candidate the ladder reached (Term.resolve)
 
     def row(self, joints) -> dict:
         f = self.fitted
@@ -104,12 +105,14 @@ class MismatchSearch:
         if sel_fit.sum() < 20:
             return None
         rw = r * w
-        wb = np.broadcast_to(w, r.shape)
-        b = rw[sel_fit]
+        # the fit sees the term's own motors only: slice them out once (a per-joint term: one motor of n)
+        rows_sub = sel_fit[:, motors]
+        b = rw[:, motors][rows_sub]
+        w_sub = np.broadcast_to(w, r.shape)[:, motors][rows_sub][:, None]
         best = None
         for h in (term.grid(rd, j) if grid is None else grid):
-            cols = _on_motors(term.columns_low(rd, j, h) if band == "low" else term.columns(rd, j, h), motors)
-            A = cols[sel_fit] * wb[sel_fit][:, None]
+            cols = term.columns_low(rd, j, h) if band == "low" else term.columns(rd, j, h)
+            A = cols[:, motors, :][rows_sub] * w_sub
             if not np.any(A):
                 continue
             G = A.T @ A                      # normal equations on the (k x k) Gram matrix: few columns, many rows
@@ -123,7 +126,7 @@ class MismatchSearch:
         dof = max(len(b) - len(coef), 1)
         cov = sse / dof * np.linalg.pinv(G)        # parameter covariance of the weighted LS
         std = np.sqrt(np.clip(np.diag(cov), 0, None))
-        contrib = cols @ coef                      # (N, n)
+        contrib = _on_motors(cols, motors) @ coef  # (N, n)
         new_w = (r - contrib) * w
 
         def gain(sel):
@@ -190,12 +193,15 @@ class MismatchSearch:
                     break
             if best is None:
                 break
+            best = self._term(best.fitted.kind).resolve(rd, best, scored, lambda s: not self._why_rejected(s))  # one mass, two links
             # selected on SELECT: its coefficients are now estimated on FIT + SELECT (hyper-parameter kept); the
             # report rows stay unseen
             final = self._evaluate(rd, self._term(best.fitted.kind), best.fitted.joint, res, weights,
                                    grid=[best.fitted.hyper], coef_rows=("fit_rows", "select_rows"))
             if final is not None and final.fitted.plausible:
                 best.fitted, best.holdout_gain, best.rms_after = final.fitted, final.holdout_gain, final.rms_after
+            if getattr(best, "note", ""):
+                best.fitted.summary += f" ({best.note})"
             taken.add((best.fitted.kind, best.fitted.joint))
             (self.references_ if self._term(best.fitted.kind).reference else self.accepted_).append(best)
             # the accepted term becomes part of the model, in both bands

@@ -520,6 +520,68 @@ def read_logs(paths: Iterable[str | Path]) -> list[Js2Log]:
     return [read_log(p) for p in paths]
 
 
+def join_logs(logs: list[Js2Log], gap_cycles: int = 50) -> Js2Log:
+    """One session recorded over several files, as one log: feedback, commands and events of each file after the
+    previous one's end, ``gap_cycles`` cycles apart (a gap longer than any bridged loss, so filters treat each file
+    as its own run and never smooth across a file boundary). The files must record the same arm (robot, drives,
+    URDF) at the same cycle rate; otherwise :class:`LogError` names the first that differs. A single log is returned
+    unchanged. ``path`` is the first file's; ``meta['joined_from']`` lists them all."""
+    if not logs:
+        raise ValueError("join_logs: no logs")
+    if len(logs) == 1:
+        return logs[0]
+    first = logs[0]
+    for lg in logs[1:]:
+        for what, a, b in (("robot", first.robot, lg.robot), ("cycle_hz", first.meta.get("cycle_hz"),
+                                                              lg.meta.get("cycle_hz")),
+                           ("drives.yaml", first.drives_yaml, lg.drives_yaml), ("robot.urdf", first.urdf_text,
+                                                                                lg.urdf_text)):
+            if a != b:
+                raise LogError(lg.path, f"{what} differs from {first.path}'s: the recordings of one command must be "
+                                        f"one arm's session; diagnose them one at a time")
+    dt = 1.0 / first.cycle_hz
+    fbs, cmds, events, warnings, notes = [], [], [], [], []
+    t_next, c_next = 0.0, 0
+    for lg in logs:
+        fb = lg.feedback
+        if len(fb) == 0:
+            continue
+        dt_shift, dc_shift = t_next - float(fb.t[0]), c_next - int(fb.cycle[0])
+        fbs.append((fb, dt_shift, dc_shift))
+        cmd = lg.command
+        if cmd is not None and len(cmd):
+            cmds.append((cmd, dt_shift, dc_shift))
+        events += [dict(e, t=float(e["t"]) + dt_shift) for e in lg.events]
+        warnings += [f"{lg.path.name}: {w}" for w in lg.warnings]
+        if lg.recovered_note:
+            notes.append(f"{lg.path.name}: {lg.recovered_note}")
+        t_next = float(fb.t[-1]) + dt_shift + gap_cycles * dt
+        c_next = int(fb.cycle[-1]) + dc_shift + gap_cycles
+
+    def cat(arrs, name):
+        vals = [getattr(a, name) for a, _, _ in arrs]
+        return None if any(v is None for v in vals) else np.concatenate(vals)
+
+    feedback = FeedbackArrays(cycle=np.concatenate([f.cycle + dc for f, _, dc in fbs]),
+                              t=np.concatenate([f.t + dt_ for f, dt_, _ in fbs]),
+                              motor_position=cat(fbs, "motor_position"), torque=cat(fbs, "torque"),
+                              motor_current=cat(fbs, "motor_current"), status=cat(fbs, "status"),
+                              valid=cat(fbs, "valid"))
+    joined = Js2Log(path=first.path, meta=dict(first.meta, joined_from=", ".join(str(lg.path) for lg in logs)),
+                    urdf_text=first.urdf_text, drives_yaml=first.drives_yaml, drives=first.drives, feedback=feedback,
+                    command_raw=[], events=sorted(events, key=lambda e: e["t"]), attachments=first.attachments,
+                    truncated=any(lg.truncated for lg in logs), damage=[d for lg in logs for d in lg.damage],
+                    recovered_note="; ".join(notes), warnings=warnings,
+                    sha256=",".join(lg.sha256 for lg in logs))
+    joined._command = (CommandArrays(cycle=np.concatenate([c.cycle + dc for c, _, dc in cmds]),
+                                     t=np.concatenate([c.t + dt_ for c, dt_, _ in cmds]), mode=cat(cmds, "mode"),
+                                     target_torque=cat(cmds, "target_torque"),
+                                     target_velocity=cat(cmds, "target_velocity"),
+                                     target_position=cat(cmds, "target_position"))
+                       if cmds and len(cmds) == len(fbs) else None)
+    return joined
+
+
 def damage_notes(paths: Iterable[str | Path]) -> list[str]:
     """'<path>: <what was lost>' for each damaged log among `paths` (truncated, corrupt, repaired): what a CLI adds
     to an error met on such a log ("no velocity trial" may only mean the trial was in the lost part)."""

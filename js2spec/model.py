@@ -29,6 +29,9 @@ class IdentifiedModel:
     base_std: np.ndarray
     urdf_path: Path | None
     raw: dict = field(default_factory=dict)
+    # Bs of the extra friction Bs sgn(v) sqrt|v| (N*m*(s/rad)^0.5, the side of ``viscous``); zeros when the model
+    # has none (``friction.sqrt_viscous`` is written only when cross-validation kept it)
+    friction_sqrt_viscous: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -86,6 +89,9 @@ def load_model(path: str | Path) -> IdentifiedModel:
     fs = _vec(fr, "static", n, path, "friction.static", nullable=True)
     fc = _vec(fr, "coulomb", n, path, "friction.coulomb")
     fv = _vec(fr, "viscous", n, path, "friction.viscous")
+    fsq = (_vec(fr, "sqrt_viscous", n, path, "friction.sqrt_viscous", nullable=True) if fr.get("sqrt_viscous")
+           is not None else np.zeros(n))
+    fsq = np.nan_to_num(fsq)
     ja = _vec(d, "motor_inertia", n, path, "motor_inertia")
     bp = d.get("base_parameters")
     if not isinstance(bp, dict) or not {"names", "values"} <= bp.keys():
@@ -99,4 +105,4 @@ def load_model(path: str | Path) -> IdentifiedModel:
     urdf_path = (path.parent / urdf) if urdf else None
     return IdentifiedModel(path=path, joints=list(joints), friction_static=fs, friction_coulomb=fc,
                            friction_viscous=fv, motor_inertia=ja, base_names=names, base_values=values,
-                           base_std=std, urdf_path=urdf_path, raw=d)
+                           base_std=std, urdf_path=urdf_path, raw=d, friction_sqrt_viscous=fsq)

@@ -3,8 +3,9 @@
 K = I, no trial labels), with the plain commands.
 
 1. js2-import (identification.examples.real_arms.import_kuka) -> kuka_1..3.mcap;
-2. js2-identify --method simultaneous --fit-trials excitation --offsets --no-sqrt-viscous --prior-weight 1 on kuka_1 (a model with friction.static
-   null, joint-side torques);
+2. js2-identify kuka_1.mcap -o MODEL, the plain command (it chooses the simultaneous method: no friction trials in
+   these recordings; a model with friction.static null, joint-side torques, offsets and prior weight chosen by
+   cross-validation);
 3. clean: js2-diagnose MODEL kuka_i.mcap -o DIR on each recording -> must say none or unexplained, never a named
    effect;
 4. payload protocol: a known point mass (2 kg at [0, 0.02, 0.08] m in the hand link's frame) is added to the hand
@@ -72,19 +73,19 @@ def identify(log: Path, out: Path) -> Path:
     from identification.cli.identify import main as identify_main
 
     if not (out / "model.yaml").is_file():
-        # the model the proof was measured with: the simultaneous method with offsets, no sqrt-viscous term (the
-        # diagnosis' prediction does not carry it yet) and the URDF prior at weight 1 (not cross-validated)
-        rc = identify_main([str(log), "-o", str(out), "--method", "simultaneous", "--fit-trials", "excitation",
-                            "--offsets", "--no-sqrt-viscous", "--prior-weight", "1", "--no-report", "-q"])
+        # the plain command: the method, offsets, sqrt-viscous friction and prior weight are chosen from the log
+        # (simultaneous here: no friction trials in these recordings)
+        rc = identify_main([str(log), "-o", str(out), "--no-report", "-q"])
         if rc != 0:
             raise SystemExit(f"js2-identify failed ({rc})")
     return out
 
 
 def payload_log(data: Path, out: Path, which: int = 2, mass: float = PAYLOAD_MASS, com=PAYLOAD_COM,
-                decimate: int = 1, trials=None) -> Path:
+                decimate: int = 1, trials=None, part: tuple[float, float] | None = None) -> Path:
     """kuka_<which> with the payload's torque added (see module docstring), optionally decimated (every
-    ``decimate``-th sample, so 200 Hz -> 100 Hz with 2), written with js2-import's writer."""
+    ``decimate``-th sample, so 200 Hz -> 100 Hz with 2) or cut to ``part`` (shares of its length), written with
+    js2-import's writer."""
     from identification import importer as im
     from js2spec.drives import load_drives
 
@@ -97,6 +98,9 @@ def payload_log(data: Path, out: Path, which: int = 2, mass: float = PAYLOAD_MAS
                                                  raw["accelerations"], mass, com)
     if decimate > 1:
         rec.t, rec.position, rec.torque = rec.t[::decimate], rec.position[::decimate], rec.torque[::decimate]
+    if part is not None:            # a share (from, to) of the recording: one file of a session recorded in parts
+        a, b = (int(round(x * len(rec.t))) for x in part)
+        rec.t, rec.position, rec.torque = rec.t[a:b], rec.position[a:b], rec.torque[a:b]
     return im.write_log(rec, urdf, drives, out, robot="kuka_lwr4", rate=200.0 / decimate, positions_side="joint",
                         trials=trials)
 

@@ -208,3 +208,34 @@ def test_damage_notes_name_the_damaged_logs(tmp_path, robot):
     cut.write_bytes(good.read_bytes()[:len(good.read_bytes()) // 2])
     notes = damage_notes([good, cut, tmp_path / "missing.mcap"])
     assert len(notes) == 1 and notes[0].startswith(f"{cut}: truncated")
+
+
+def test_join_logs_makes_one_session_of_several_files(tmp_path, robot):
+    from js2spec.log import join_logs
+
+    _write(tmp_path / "a.mcap", robot, n_cycles=300)
+    _write(tmp_path / "b.mcap", robot, n_cycles=200)
+    a, b = read_log(tmp_path / "a.mcap"), read_log(tmp_path / "b.mcap")
+    j = join_logs([a, b], gap_cycles=50)
+    assert len(j.feedback) == 500 and j.meta["joined_from"].count(".mcap") == 2
+    np.testing.assert_array_equal(j.feedback.motor_position[300:], b.feedback.motor_position)
+    # the second file starts 50 cycles after the first ends, in time and in the cycle counter (a gap, not a loss)
+    assert j.feedback.cycle[300] - j.feedback.cycle[299] == 50
+    assert j.feedback.t[300] - j.feedback.t[299] == pytest.approx(50 / 500)
+    assert np.all(np.diff(j.feedback.t) > 0)
+    starts = [e["t"] for e in j.events if e["kind"] == "trial_start"]
+    assert starts == pytest.approx([0.0, j.feedback.t[300]])
+    assert len(j.command) == 500 and j.command.t[300] == pytest.approx(j.feedback.t[300])
+    assert join_logs([a]) is a
+
+
+def test_join_logs_refuses_recordings_of_another_arm_or_rate(tmp_path, robot):
+    from js2spec.log import join_logs
+
+    _write(tmp_path / "a.mcap", robot, n_cycles=100)
+    with LogWriter(tmp_path / "c.mcap", robot="js2", cycle_hz=250, source="hil_sim:test", urdf_text=robot.urdf_text,
+                   drives_yaml=robot.drives_yaml) as w:
+        for k in range(50):
+            w.feedback(k, k / 250, np.zeros(6), torque=np.zeros(6), motor_current=np.zeros(6))
+    with pytest.raises(LogError, match="cycle_hz differs"):
+        join_logs([read_log(tmp_path / "a.mcap"), read_log(tmp_path / "c.mcap")])
