@@ -39,11 +39,11 @@ def fig_rms(res: DiagnosisResult):
     n = len(d["before"])
     fig, ax = plt.subplots(figsize=(7, 3))
     x = np.arange(n)
-    ax.bar(x - 0.2, np.asarray(d["before"], float) * 1e3, 0.4, label="model")
-    ax.bar(x + 0.2, np.asarray(d["after"], float) * 1e3, 0.4, label="model + found terms")
+    ax.bar(x - 0.2, np.asarray(d["before"], float), 0.4, label="model")
+    ax.bar(x + 0.2, np.asarray(d["after"], float), 0.4, label="model + found terms")
     ax.set_xticks(x, [f"motor {i + 1}" for i in range(n)])
-    ax.set_ylabel("held-out residual RMS (mN m)")
-    ax.set_title("Residual on data the terms were not fitted on")
+    ax.set_ylabel("report-rows residual RMS (N m)")
+    ax.set_title("Residual on the report rows (never seen by the search)")
     ax.legend(fontsize=8)
     return fig
 
@@ -62,29 +62,36 @@ def fig_finding(res: DiagnosisResult, k: int):
     pred = rd.tau_pred if sc.band == "low" else rd.tau_pred_raw
     fig, axs = plt.subplots(1, 2, figsize=(12, 3.4))
     if len(rows):
-        sl = rows[: int(min(len(rows), 6 * rd.fs))]
-        t = rd.t[sl]
-        axs[0].plot(t, meas[sl, i] * 1e3, "k.", ms=1.5, label="measured")
-        axs[0].plot(t, pred[sl, i] * 1e3, "C0-", lw=1, label="model")
-        axs[0].plot(t, (pred[sl, i] + corr[sl, i]) * 1e3, "C3-", lw=1, label="model + found terms")
-        axs[0].set_xlabel("t (s), held-out data")
-        axs[0].set_ylabel(f"motor {i + 1} torque (mN m)")
+        # the whole report span; samples left out (at rest, lost, other trials) are gaps in the lines, not joins
+        span = np.arange(rows[0], rows[-1] + 1)
+        shown = np.zeros(len(rd.t), bool)
+        shown[rows] = True
+
+        def gaps(x):
+            return np.where(shown[span], x[span], np.nan)
+
+        t = rd.t[span]
+        axs[0].plot(t, gaps(meas[:, i]), "k-", lw=0.6, label="measured")
+        axs[0].plot(t, gaps(pred[:, i]), "C0-", lw=1, label="model")
+        axs[0].plot(t, gaps(pred[:, i] + corr[:, i]), "C3-", lw=1, label="model + found terms")
+        axs[0].set_xlabel("t (s), report rows (gaps: samples left out)")
+        axs[0].set_ylabel(f"motor {i + 1} torque (N m)")
         axs[0].legend(fontsize=7)
-    r0 = (meas - pred)[rows, i] * 1e3
-    r1 = (meas - pred - corr)[rows, i] * 1e3
+    r0 = (meas - pred)[rows, i]
+    r1 = (meas - pred - corr)[rows, i]
     if f.kind == "cogging":
         x = np.mod(rd.q_motor[rows, i] * f.hyper, 2 * np.pi)
         xl = f"motor angle x {int(f.hyper)} mod 2 pi (rad)"
     elif f.kind == "thermal_drift":
         x, xl = rd.t[rows], "time (s)"
     elif f.kind in FRICTION_KINDS:
-        x, xl = rd.dq_motor[rows, i], "motor speed (rad/s)"
-    else:
-        x, xl = rd.tau_rigid_joint[rows, int(f.effect["joints"][0])], "model joint torque (N m)"
+        x, xl = rd.dq_motor[rows, i], f"motor {i + 1} speed (rad/s)"
+    else:                    # payload, elasticity, backlash: against the same motor's model torque
+        x, xl = rd.tau_rigid_motor[rows, i], f"motor {i + 1} model torque (N m)"
     axs[1].plot(x, r0, ".", ms=1.5, alpha=0.5, label="residual, model")
     axs[1].plot(x, r1, ".", ms=1.5, alpha=0.5, label="residual, model + found terms")
     axs[1].set_xlabel(xl)
-    axs[1].set_ylabel("residual (mN m)")
+    axs[1].set_ylabel(f"motor {i + 1} residual (N m)")
     axs[1].legend(fontsize=7, markerscale=5)
     fig.suptitle(f"{f.kind} on {rd.joints[f.effect['joints'][0]]}: {f.summary}", fontsize=9)
     return fig
@@ -96,10 +103,36 @@ def _g(x, p=3):
     return "–" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{p}g}"
 
 
+def headline(d: dict) -> str:
+    """One sentence: is there a mismatch, what is it, and how much of the report-rows residual the findings remove."""
+    if d["findings"]:
+        names = "; ".join(f"{f['kind']} on {f['joint']}" for f in d["findings"])
+        return (f"Mismatch found: the model leaves out {names}. Together the found terms remove "
+                f"{d['holdout_gain']:.0%} of the residual on the report rows, which the search never saw.")
+    if d["unexplained"]:
+        return ("Mismatch, but no named physics: the residual on " + ", ".join(u["joint"] for u in d["unexplained"])
+                + " has structure that only a refit of the model's own friction/offset explains (unexplained).")
+    return "No mismatch that any candidate term explains on held-out data: the model is complete as far as this " \
+           "recording can tell."
+
+
+def next_step(d: dict) -> str:
+    if d["findings"]:
+        return ("model_diagnosed.yaml is the model plus `unmodelled:` (the found effects with their parameters) for "
+                "your controller or simulator; effects.yaml simulates them with hil_sim (sim_truth.yaml `effects:`). "
+                "Confirm on a recording this diagnosis did not see: the same effects should be found again.")
+    if d["unexplained"]:
+        return ("Re-identify the friction of the joints named unexplained (js2-identify with a velocity trial), or "
+                "record a longer session with a 'validation' trial, and diagnose again.")
+    return "Nothing to change."
+
+
 def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     d = _jsonable(res.to_dict())
+    d["headline"] = headline(d)
+    d["next_step"] = next_step(d)
     paths = {"json": out / "diagnosis.json", "model": out / "model_diagnosed.yaml", "effects": out / "effects.yaml",
              "report": out / "report.html"}
     paths["json"].write_text(json.dumps(d, indent=1))
@@ -115,6 +148,7 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
     for k in range(len(res.accepted)):
         figs.append((f"Finding {k + 1}", png_base64(fig_finding(res, k))))
     rows = [[f["kind"], f["joint"], str(f["hyper"]), f"{f['holdout_gain']:.1%}", f"{f['fit_gain']:.1%}",
+             "; ".join(f"{_g(c)} ± {_g(e, 2)}" for c, e in zip(f["coefficients"], f["coefficients_std"])),
              f["summary"]] for f in d["findings"]]
     cand = [[c["kind"], c["joint"], _g(c["hyper"]), f"{c['select_gain_all']:.1%}", f"{c['select_gain']:.1%}",
              f"{c['fit_gain']:.1%}", "yes" if c["plausible"] and not c["why_not"] else f"no: {c['why_not']}"]
@@ -124,17 +158,22 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
                  "yes" if m["flagged"] else ""] for m in d["location"]["motors"]]
     body = [f"<h1>js2 diagnosis</h1><p><b>Model</b> {html.escape(d['model'])}<br><b>Recording</b> "
             f"{html.escape(', '.join(d['recordings']))}<br><b>Split</b> {html.escape(d['split'])}</p>",
+            f"<h2>Answer</h2><p style='font-size:1.15em'>{html.escape(headline(d))}</p>",
             f"<h2>Verdict</h2><p>{html.escape(d['verdict'])}</p>",
             f"<h2>Where</h2><p>{html.escape(d['location']['text'])}</p>",
             html_table(["motor", "joint", "held-out RMS before (N m)", "after", "drop", "largest in", "mismatch"],
                    loc_rows),
             "<h2>What was found</h2>" + (html_table(["kind", "joint", "hyper-parameter", "report gain", "fit gain",
-                                                 "what it means"], rows) if rows else "<p>nothing</p>"),
+                                                 "coefficients ± std (fit)", "what it means"], rows)
+                                     if rows else "<p>nothing</p>"),
             "<h2>Candidates tried (first step, best first)</h2>",
             html_table(["kind", "joint", "hyper", "select gain (all motors)", "select gain (its motors)",
                     "fit gain", "passes"], cand)]
     for title, png in figs:
         body.append(f"<h2>{html.escape(title)}</h2><img src='data:image/png;base64,{png}'>")
+    body.append("<h2>Next step</h2><p>" + html.escape(next_step(d)) + "</p><p><small>Gains: "
+                + html.escape(d["holdout_gain_definition"]) + ". Torques in N m, motor side; speeds in rad/s; "
+                "parameters in the units of hil_sim's effects (frames named in each finding).</small></p>")
     if d["notes"]:
         body.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(str(n))}</li>" for n in d["notes"]) + "</ul>")
     style = ("<style>body{font-family:sans-serif;max-width:1200px;margin:auto}table{border-collapse:collapse}"
