@@ -294,11 +294,27 @@ class ThermalDrift(Term):
 
 
 class LoadDependentFriction(Term):
+    """Friction growing with the transmitted load: sgn(w_j) |(K^T tau_rigid)_j| (coefficient mu).
+
+    Besides the refit null (``extends``), a null the data give: the same column with the load shifted in time
+    (``shifted_columns``, circular shifts by fifths of the recording) keeps the column's statistics and its sign
+    pattern but breaks its tie to the load; the search asks the term to beat the best shifted copy on the select rows
+    by ``shift_margin`` (on a clean real KUKA recording the load column cut the shoulder's residual 37 %, and a copy
+    of it shifted by 3 s cut it 41 %: not load-dependent friction)."""
     kind, extends = "load_dependent_friction", ("friction_refit",)
+    shift_lags = (0.2, 0.4, 0.6, 0.8)     # shares of the recording
+    shift_margin = 0.10
 
     def columns(self, rd, j, h):
         col = np.zeros((len(rd.t), rd.n, 1))
         col[:, j, 0] = _sgn(_moving(rd, j)) * np.abs(np.nan_to_num(rd.tau_rigid_motor[:, j]))
+        return col
+
+    def shifted_columns(self, rd, j, h, lag: float) -> np.ndarray:
+        """The column with the load circularly shifted by ``lag`` x the recording's length (the null)."""
+        col = np.zeros((len(rd.t), rd.n, 1))
+        load = np.abs(np.nan_to_num(rd.tau_rigid_motor[:, j]))
+        col[:, j, 0] = _sgn(_moving(rd, j)) * np.roll(load, int(round(lag * len(load))))
         return col
 
     def effect(self, rd, j, h, coef, std):

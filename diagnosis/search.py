@@ -68,6 +68,23 @@ def _on_motors(cols: np.ndarray, motors: np.ndarray) -> np.ndarray:
     return out
 
 
+class _ShiftedTerm(Term):
+    """A term's null copy: its ``shifted_columns`` at one lag, scored like the term (never named)."""
+
+    def __init__(self, term: Term, lag: float):
+        self.base, self.lag = term, lag
+        self.kind, self.band = term.kind + "_shifted", term.band
+
+    def motors(self, rd, j):
+        return self.base.motors(rd, j)
+
+    def columns(self, rd, j, h):
+        return self.base.shifted_columns(rd, j, h, self.lag)
+
+    def effect(self, rd, j, h, coef, std):
+        return {}, "", False, "null"
+
+
 class MismatchSearch:
     """Estimator over a :class:`ResidualData`: ``fit`` runs the ladder, ``predict`` gives the accepted terms' torque,
     ``score`` the report-rows gain of the accepted terms together."""
@@ -183,6 +200,7 @@ class MismatchSearch:
                     scored.append(s)
             self.tried_ += len(scored)
             self._nested_check(scored)
+            self._shift_check(rd, scored, res, weights)
             scored.sort(key=lambda s: (s.fitted.plausible, s.select_gain_all), reverse=True)
             self.rankings_.append(scored)
             best = None
@@ -234,6 +252,30 @@ class MismatchSearch:
                     s.fitted.plausible = False
                     s.fitted.why_not = (f"no better than {simpler_kind} on the select rows ({s.select_gain:.1%} vs "
                                         f"{simpler.select_gain:.1%}): the simpler physics explains it")
+
+    def _shift_check(self, rd: ResidualData, scored: list[Scored], res: dict, weights: dict) -> None:
+        """The data's null for a term whose column ties the residual to another signal (``Term.shifted_columns``,
+        e.g. the load): the same column with that signal shifted in time. The term must cut what the best shifted
+        copy leaves on the select rows by ``Term.shift_margin``, or it is not plausible (its gain does not come from
+        the tie it claims)."""
+        for s in scored:
+            term = self._term(s.fitted.kind)
+            if not hasattr(term, "shifted_columns") or not s.fitted.plausible or s.select_gain < self.min_gain:
+                continue
+            j, h = s.fitted.joint, s.fitted.hyper
+            best_null = -np.inf
+            for lag in term.shift_lags:
+                null = _ShiftedTerm(term, lag)
+                ns = self._evaluate(rd, null, j, res, weights, grid=[h])
+                if ns is not None:
+                    best_null = max(best_null, ns.select_gain)
+            if not np.isfinite(best_null):
+                continue
+            cut = 1 - (1 - s.select_gain) / max(1 - best_null, 1e-12)
+            if cut < term.shift_margin:
+                s.fitted.plausible = False
+                s.fitted.why_not = (f"no better than its own column shifted in time on the select rows ({s.select_gain:.1%}"
+                                    f" vs {best_null:.1%}): the gain does not come from the tie to the load")
 
     def predict(self, rd: ResidualData, band: str = "low") -> np.ndarray:
         """Torque (N, n) the accepted terms add to the model's prediction, in ``band`` ('low' or 'wide')."""
