@@ -17,6 +17,18 @@ from js2io.canopen_group import CanopenDriveGroup
 from js2spec.errors import Js2Error
 
 
+def close_master(group, network) -> None:
+    """The master's side of a rig, closed in order: the drive group (its own safe stop), then the CANopen network
+    (whose bus may be gone already with a simulator that ended)."""
+    if group is not None:
+        group.close()
+    if network is not None:
+        try:
+            network.disconnect()
+        except Exception:   # noqa: BLE001 - the other side may be gone already
+            pass
+
+
 class InProcessCanopen:
     def __init__(self, robot, *, cycle_hz: float | None = None, seed: int = 0, faults=None, realtime: bool = False,
                  sim_realtime: bool | None = None, q0=None, lockstep_timeout_s: float = 0.5):
@@ -45,13 +57,7 @@ class InProcessCanopen:
         return self
 
     def close(self) -> None:
-        if self.group is not None:
-            self.group.close()
-        if self.network is not None:
-            try:
-                self.network.disconnect()
-            except Exception:
-                pass
+        close_master(self.group, self.network)
         self.sim.stop()
 
     def __enter__(self):

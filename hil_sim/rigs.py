@@ -124,13 +124,9 @@ class ProcessRig:
             self.proc.wait()
 
     def close(self) -> None:
-        if self.group is not None:
-            self.group.close()
-        if self.network is not None:
-            try:
-                self.network.disconnect()
-            except Exception:   # noqa: BLE001 - the child may be gone already
-                pass
+        from hil_sim.canopen_inprocess import close_master
+
+        close_master(self.group, self.network)
         self._end_child()
         if getattr(self, "_drainer", None) is not None:
             self._drainer.join(timeout=2.0)

@@ -24,6 +24,21 @@ def _rows(arm, where, offsets, sqrt_viscous=False):
     return np.concatenate(Ws), np.concatenate(Ys)
 
 
+def published_friction(urdf_text: str, joints: list[str]) -> dict:
+    """The friction a URDF publishes (``<dynamics damping=... friction=...>`` per joint) as fixed reference values
+    ``{"B_k": damping, "fc_k": friction}`` (k: 1-based drive order of ``joints``), for :func:`reference_prediction`."""
+    import xml.etree.ElementTree as ET
+
+    fixed = {}
+    for j in ET.fromstring(urdf_text).findall("joint"):
+        dyn = j.find("dynamics")
+        if dyn is not None and j.get("name") in joints:
+            k = joints.index(j.get("name")) + 1
+            fixed[f"B_{k}"] = float(dyn.get("damping", 0))
+            fixed[f"fc_{k}"] = float(dyn.get("friction", 0))
+    return fixed
+
+
 def reference_prediction(ident, urdf_text: str | None = None, fixed: dict | None = None, refit: bool = True):
     """Validation-sample torque predicted by a reference model, and the measurement it is compared with.
 

@@ -27,7 +27,6 @@ import argparse
 import json
 import sys
 import tempfile
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +53,7 @@ def _ident_rows(ident) -> list[dict]:
 def bench_tx40(data: Path, work: Path) -> dict:
     from identification.examples.real_arms import import_tx40, tx40_published
     from identification.pipeline import identify
-    from identification.reference import reference_prediction
+    from identification.reference import published_friction, reference_prediction
 
     ident = identify([import_tx40(data, work / "tx40.mcap")])
     rows = _ident_rows(ident)
@@ -81,14 +80,7 @@ def bench_kuka(data: Path, work: Path) -> dict:
                        ("CAD URDF + drive terms refitted", data / "kuka_lwr4" / "kinematics" / "kuka_lwr4.urdf")):
         p, m, _ = reference_prediction(ident, path.read_text(), refit=True)
         rows.append(_row(name, p, m))
-    root = ET.fromstring((pubdir / "kuka_lwr4_identified.urdf").read_text())
-    fixed = {}
-    for j in root.findall("joint"):
-        dyn = j.find("dynamics")
-        if dyn is not None and j.get("name") in ident.arm.joints:
-            k = ident.arm.joints.index(j.get("name")) + 1
-            fixed[f"B_{k}"] = float(dyn.get("damping", 0))
-            fixed[f"fc_{k}"] = float(dyn.get("friction", 0))
+    fixed = published_friction((pubdir / "kuka_lwr4_identified.urdf").read_text(), list(ident.arm.joints))
     p, m, _ = reference_prediction(ident, (pubdir / "kuka_lwr4_identified.urdf").read_text(), fixed=fixed, refit=True)
     rows.append(_row("FloBaRoID identified URDF as published (its friction; offsets refitted)", p, m))
     return {"arm": "KUKA LWR4+ (joint torque sensors, 200 Hz; fit file 1, validate file 3)",

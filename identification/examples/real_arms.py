@@ -141,16 +141,9 @@ def run_kuka(data: Path, work: Path, progress: bool = False) -> dict:
         except Exception as exc:  # noqa: BLE001 - a published URDF we cannot evaluate is reported, not fatal
             refs[name] = f"not evaluated: {exc}"
     # FloBaRoID's URDF also publishes its friction (<dynamics damping friction>): evaluated as published too
-    import xml.etree.ElementTree as ET
+    from identification.reference import published_friction
 
-    root = ET.fromstring((pubdir / "kuka_lwr4_identified.urdf").read_text())
-    fixed = {}
-    for j in root.findall("joint"):
-        dyn = j.find("dynamics")
-        if dyn is not None and j.get("name") in ident.arm.joints:
-            k = ident.arm.joints.index(j.get("name")) + 1
-            fixed[f"B_{k}"] = float(dyn.get("damping", 0))
-            fixed[f"fc_{k}"] = float(dyn.get("friction", 0))
+    fixed = published_friction((pubdir / "kuka_lwr4_identified.urdf").read_text(), list(ident.arm.joints))
     refs["FloBaRoID identified URDF as published (its damping/friction, offsets refitted)"] = reference_rms(
         ident, (pubdir / "kuka_lwr4_identified.urdf").read_text(), fixed=fixed, refit=True)[0]
     return {"ident": ident, "rms": ident.validation[ident.chosen]["rms"], "nrms": ident.validation[ident.chosen]["nrms"],
