@@ -11,6 +11,7 @@ import numpy as np
 import yaml
 
 from identification.report import html_table, png_base64, pyplot
+from js2spec.effects import parse_effects, units_comment
 
 from .run import DiagnosisResult
 
@@ -96,6 +97,16 @@ def _g(x, p=3):
     return "–" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{p}g}"
 
 
+def effects_yaml(res: DiagnosisResult, path: Path) -> str:
+    """The found effects in the simulator's config form, validated against the one effect schema
+    (:mod:`js2spec.effects`, which ``hil_sim`` parses with), parameters in the schema's order and units."""
+    effects = parse_effects(res.sim_effects(), res.rd.n, source=path, joints=res.rd.joints)
+    head = ("# effects the diagnosis found; simulate them with hil_sim (sim_truth.yaml `effects:`, Plant(effects=...)\n"
+            "# or js2-sim --replay RECORDING --model MODEL --effects THIS_FILE). Units (js2spec.effects):\n")
+    return head + units_comment() + "\n" + yaml.safe_dump(
+        {"effects": _jsonable([e.as_config() for e in effects])}, sort_keys=False)
+
+
 def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -108,9 +119,7 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
         dst = out / res.model.urdf_path.name
         if dst.resolve() != res.model.urdf_path.resolve():
             shutil.copyfile(res.model.urdf_path, dst)
-    paths["effects"].write_text("# effects the diagnosis found; simulate them with hil_sim (sim_truth.yaml "
-                                "`effects:` or Plant(effects=...))\n"
-                                + yaml.safe_dump({"effects": _jsonable(res.sim_effects())}, sort_keys=False))
+    paths["effects"].write_text(effects_yaml(res, paths["effects"]))
     figs = [("Held-out residual per motor", png_base64(fig_rms(res)))]
     for k in range(len(res.accepted)):
         figs.append((f"Finding {k + 1}", png_base64(fig_finding(res, k))))
