@@ -107,10 +107,61 @@ def effects_yaml(res: DiagnosisResult, path: Path) -> str:
         {"effects": _jsonable([e.as_config() for e in effects])}, sort_keys=False)
 
 
-def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
+def fig_replay(res: DiagnosisResult, arrays: dict, motors: list[int]):
+    """Recording vs simulation over the report rows (gaps shown as gaps), one panel per motor: measured torque, the
+    simulator with the model, the simulator with the model plus the found effects."""
+    plt = pyplot()
+    rd = res.rd
+    fig, axs = plt.subplots(len(motors), 1, figsize=(12, 2.4 * len(motors)), squeeze=False)
+    for ax, i in zip(axs[:, 0], motors):
+        r = arrays["rows"][:, i]
+        t = rd.t
+        for y, style, lab in ((rd.tau_meas[:, i], "k-", "recording"), (arrays["tau_model"][:, i], "C0-",
+                                                                      "simulator: model"),
+                              (arrays["tau_effects"][:, i], "C3-", "simulator: model + found effects")):
+            ax.plot(t, np.where(r, y, np.nan) * 1e3, style, lw=0.8, label=lab)
+        ax.set_ylabel(f"motor {i + 1} (mN m)")
+    axs[0, 0].legend(fontsize=7, loc="upper right")
+    axs[-1, 0].set_xlabel("t (s), report rows (moving samples; gaps are rows not compared)")
+    fig.suptitle("Recording vs simulation (hil_sim replay of the recorded motion)", fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def replay_html(res: DiagnosisResult, rep: dict, arrays: dict) -> str:
+    """The report's replay section: a table per motor and the torque-over-time figure of the motors the effects
+    change most."""
+    rows = [[f"motor {i + 1}", j, _g(b), _g(a), f"{x:.0%}" if x is not None else "–"]
+            for i, (j, b, a, x) in enumerate(zip(rep["joints"], rep["rms_model"], rep["rms_model_effects"],
+                                                rep["drop"]))]
+    change = [(b or 0) - (a or 0) for b, a in zip(rep["rms_model"], rep["rms_model_effects"])]
+    motors = sorted(np.argsort(change)[::-1][:3].tolist())
+    eff = ", ".join(f"{e['kind']} on {res.rd.joints[e['joints'][0]]}" for e in rep["effects"]) or "none found"
+    gain = f"{rep['gain']:.1%}" if rep["gain"] is not None else "–"
+    skipped = (f" Not simulated (no hil_sim implementation): {', '.join(rep['not_simulated'])}."
+               if rep["not_simulated"] else "")
+    return (f"<h2>Simulation against the recording</h2><p>The recorded motion replayed through the simulator "
+            f"(<code>hil_sim</code>, {html.escape(rep['mode'])}) with the identified model, then with the model plus "
+            f"the found effects ({html.escape(eff)}).{html.escape(skipped)} RMS of recording minus simulation on the "
+            f"{html.escape(rep['rows'])}; together the effects remove {gain} of the gap "
+            f"({html.escape(rep['gain_definition'])}).</p>"
+            + html_table(["motor", "joint", "RMS gap, model (N m)", "model + effects (N m)", "drop"], rows)
+            + f"<img src='data:image/png;base64,{png_base64(fig_replay(res, arrays, motors))}'>")
+
+
+def write_outputs(res: DiagnosisResult, outdir: str | Path, replay: bool = False) -> dict[str, Path]:
+    """``replay``: also replay the recording through hil_sim (``diagnosis.replay``): ``diagnosis.json`` ``replay``
+    and a report section."""
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     d = _jsonable(res.to_dict())
+    rep_html = ""
+    if replay:
+        from .replay import replay_section
+
+        rep, arrays = replay_section(res)
+        d["replay"] = _jsonable(rep)
+        rep_html = replay_html(res, d["replay"], arrays)
     paths = {"json": out / "diagnosis.json", "model": out / "model_diagnosed.yaml", "effects": out / "effects.yaml",
              "report": out / "report.html"}
     paths["json"].write_text(json.dumps(d, indent=1))
@@ -144,6 +195,8 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
                     "fit gain", "passes"], cand)]
     for title, png in figs:
         body.append(f"<h2>{html.escape(title)}</h2><img src='data:image/png;base64,{png}'>")
+    if rep_html:
+        body.append(rep_html)
     if d["notes"]:
         body.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(str(n))}</li>" for n in d["notes"]) + "</ul>")
     style = ("<style>body{font-family:sans-serif;max-width:1200px;margin:auto}table{border-collapse:collapse}"
