@@ -3,6 +3,8 @@
   js2-sim                           # serve a socketcand hub on 127.0.0.1 (ephemeral port, printed) and attach
   js2-sim --port 29536 --slcan-pty  # fixed port, plus an slcan pseudo-terminal (USB-adapter protocol)
   js2-sim -i socketcan -c vcan0     # join an existing bus instead (Linux with vcan/SocketCAN)
+  js2-sim --replay run.mcap --model runs/model --effects runs/diag/effects.yaml -o replayed.mcap
+                                    # no bus: the recording's motion through the identified model (+ effects)
 
 Physics advances one period per SYNC (lock-step, deterministic) unless --realtime (wall clock).
 """
@@ -39,6 +41,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="SCHED_FIFO priority N for the simulator (Linux; root/CAP_SYS_NICE); 0 = off")
     p.add_argument("--cpu", type=int, metavar="C", help="run the simulator on CPU C only (Linux)")
     p.add_argument("--duration", type=float, help="exit after this many seconds (default: until Ctrl-C/SIGTERM)")
+    r = p.add_argument_group("replay a recording instead of serving a bus (hil_sim.replay)")
+    r.add_argument("--replay", metavar="RECORDING", help="a js2 log: its recorded motion is replayed through the "
+                   "identified model (inverse dynamics: the torque the simulator needs) and compared with its torques")
+    r.add_argument("--model", metavar="DIR", help="model.yaml written by js2-identify (or its folder); required "
+                   "with --replay")
+    r.add_argument("--effects", metavar="YAML", help="effects to add to the model (effects.yaml from js2-diagnose)")
+    r.add_argument("-o", "--output", metavar="OUT.mcap", help="the simulated recording (with --replay)")
     return p
 
 
@@ -46,11 +55,46 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from js2io.bus import console_logging
     console_logging("js2-sim")
+    if args.replay or args.model or args.effects or args.output:
+        return _replay(args)
     try:
         return _run(args)
     except Js2Error as e:
         print(f"js2-sim: error: {e}", file=sys.stderr)
         return 2
+
+
+def _replay(args) -> int:
+    """js2-sim --replay RECORDING --model DIR [--effects YAML] -o OUT.mcap: print the per-joint RMS of recording
+    minus simulation (moving samples, torque band), with the model and with the model plus the effects."""
+    if not (args.replay and args.model and args.output):
+        print("js2-sim: error: --replay RECORDING --model DIR -o OUT.mcap go together (--effects YAML optional)",
+              file=sys.stderr)
+        return 2
+    from .replay import replay_recording, write_replay_log
+    try:
+        rep = replay_recording(args.replay, args.model, args.effects)
+        out = write_replay_log(rep, args.replay, args.model, args.output, args.effects)
+    except Js2Error as e:
+        print(f"js2-sim: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        print(f"js2-sim: error: cannot write {e.filename or args.output}: {e.strerror or e}; choose another -o",
+              file=sys.stderr)
+        return 2
+    for note in rep.notes:
+        print(f"note: {note}")
+    before = rep.rms("model")
+    after = rep.rms("effects") if rep.tau_effects is not None else None
+    print(f"js2-sim: replayed {args.replay} through {args.model}" + (f" + {args.effects}" if args.effects else "")
+          + f" (inverse dynamics, {len(rep.t)} samples); RMS recording - simulation on the moving samples, torque band:")
+    for i, j in enumerate(rep.joints):
+        line = f"  {j:<14} model {before[i]:.4g} N*m"
+        if after is not None:
+            line += f"   model + effects {after[i]:.4g} N*m"
+        print(line)
+    print(f"-> {out}")
+    return 0
 
 
 def _run(args) -> int:
