@@ -105,8 +105,8 @@ def main(argv=None) -> int:
         import json
 
         rep = json.loads(paths["json"].read_text())["replay"]
-        print("replay through hil_sim, RMS recording - simulation on the report rows (mN m), model -> model + "
-              "effects: " + ", ".join(f"motor {i + 1} {1e3 * b:.3g} -> {1e3 * a:.3g}" for i, (b, a) in
+        print("replay through hil_sim, RMS recording - simulation on the report rows (N*m), model -> model + "
+              "effects: " + ", ".join(f"motor {i + 1} {b:.3g} -> {a:.3g}" for i, (b, a) in
                                       enumerate(zip(rep["rms_model"], rep["rms_model_effects"]))
                                       if b is not None and a is not None)
               + (f"; gain {rep['gain']:.1%}" if rep["gain"] is not None else ""))

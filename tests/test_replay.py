@@ -107,6 +107,10 @@ def test_payload_gap_shrinks_on_the_report_rows_with_the_found_effects(payload_d
     assert np.all(after < before)
     assert after[1] < 0.2 * before[1] and after[2] < 0.2 * before[2]
     assert rep["gain"] > 0.8
+    # docs/diagnosis.md ("Replay"): motor 2 17.8 -> 0.82 mN m, motor 3 12.7 -> 0.45 mN m, gain 97.7 %
+    assert before[1] == pytest.approx(0.0178, rel=0.1) and after[1] == pytest.approx(0.00082, rel=0.3)
+    assert before[2] == pytest.approx(0.0127, rel=0.1) and after[2] == pytest.approx(0.00045, rel=0.3)
+    assert rep["gain"] == pytest.approx(0.977, abs=0.03)
     assert rep["agreement_with_diagnosis_prediction"] < 1e-9
     assert "report rows" in rep["rows"]
     html = (out / "report.html").read_text()
