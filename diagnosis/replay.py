@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hil_sim.replay import inverse_replay, model_offsets, model_plant, rms_per_joint
+from hil_sim.replay import forward_replay, inverse_replay, model_offsets, model_plant, rms_per_joint
 from js2spec.effects import EFFECT_KINDS
 
 from .run import DiagnosisResult
@@ -29,6 +29,17 @@ def replay_torques(res: DiagnosisResult, effects: list[dict]) -> np.ndarray:
     off = model_offsets(res.model)
     tau = tau + (off @ rd.K if rd.torque_side == "joint" else off)      # offsets on the log's side -> motor side
     return rd.signals.filter_like_torque(np.nan_to_num(tau))
+
+
+def forward_positions(res: DiagnosisResult, effects: list[dict], bandwidth_hz: float = 5.0):
+    """Forward replay (:func:`hil_sim.replay.forward_replay`): the plant under the recorded motor torque (offsets
+    removed) plus a tracking term at ``bandwidth_hz``; returns (simulated motor angles (N, n), tracking torque)."""
+    rd = res.rd
+    plant = model_plant(res.model, _drives(res), effects, effects_source="diagnosis findings")
+    off = model_offsets(res.model)
+    tau = rd.tau_meas - (off @ rd.K if rd.torque_side == "joint" else off)
+    fr = forward_replay(plant, rd.t, rd.q_motor, rd.dq_motor, tau, runs=rd.signals.runs, bandwidth_hz=bandwidth_hz)
+    return fr.q_motor, fr.tau_pd
 
 
 def _drives(res: DiagnosisResult):
@@ -59,6 +70,17 @@ def replay_section(res: DiagnosisResult) -> tuple[dict, dict]:
     den = float(np.sum(w[ok] * before[ok] ** 2))
     gain = 1.0 - float(np.sum(w[ok] * after[ok] ** 2)) / den if den > 0 else None
     arrays = {"tau_model": tau0, "tau_effects": tau1, "rows": rows}
+    fwd = {}
+    report = rd.holdout_rows & rd.signals.keep
+    for key, eff in (("model", []), ("model_effects", sim)):
+        if key == "model_effects" and not sim:
+            fwd[key] = fwd["model"]
+            continue
+        q_sim, tau_pd = forward_positions(res, eff)
+        err = np.where(np.isfinite(q_sim), (rd.q_motor - q_sim) @ rd.K.T, np.nan)
+        fwd[key] = {"position_rms": rms_per_joint(err, report[:, None] & np.ones_like(err, bool)).tolist(),
+                    "tracking_torque_rms": rms_per_joint(tau_pd, report[:, None] & np.ones_like(err, bool)).tolist(),
+                    "followed": float(np.mean(np.isfinite(q_sim[report, 0]))) if report.any() else 0.0}
     return {"mode": "inverse dynamics: the recorded motion prescribed, the simulator's torque compared",
             "rows": ROWS, "joints": rd.joints,
             "effects": sim, "not_simulated": skipped,
@@ -67,5 +89,10 @@ def replay_section(res: DiagnosisResult) -> tuple[dict, dict]:
             "gain": gain,
             "gain_definition": "1 - sum of squared (recording - simulation) with the effects / without, each motor "
                                "scaled by its model-only gap on the fit rows, report rows only",
+            "forward": {"what": "the plant under the recorded motor torque plus a tracking term M_z(theta) (w^2 e + "
+                                "2 w e_dot), w = 2 pi 5 Hz, from the recording's state at the start of each run; "
+                                "joint angles (rad, joint side) and the tracking torque (N*m, motor side) on the "
+                                "report rows; 'followed': share of them before the plant left the recording by 1 rad",
+                        "model": fwd["model"], "model_effects": fwd["model_effects"]},
             "agreement_with_diagnosis_prediction": float(np.nanmax(np.abs(
                 (tau0 - rd.tau_pred)[rd.mask]))) if rd.mask.any() else None}, arrays

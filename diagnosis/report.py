@@ -131,9 +131,12 @@ def fig_replay(res: DiagnosisResult, arrays: dict, motors: list[int]):
 def replay_html(res: DiagnosisResult, rep: dict, arrays: dict) -> str:
     """The report's replay section: a table per motor and the torque-over-time figure of the motors the effects
     change most."""
-    rows = [[f"motor {i + 1}", j, _g(b), _g(a), f"{x:.0%}" if x is not None else "–"]
-            for i, (j, b, a, x) in enumerate(zip(rep["joints"], rep["rms_model"], rep["rms_model_effects"],
-                                                rep["drop"]))]
+    fw = rep["forward"]
+    rows = [[f"motor {i + 1}", j, _g(b), _g(a), f"{x:.0%}" if x is not None else "–", _g(p0), _g(p1), _g(t0), _g(t1)]
+            for i, (j, b, a, x, p0, p1, t0, t1) in enumerate(zip(
+                rep["joints"], rep["rms_model"], rep["rms_model_effects"], rep["drop"],
+                fw["model"]["position_rms"], fw["model_effects"]["position_rms"],
+                fw["model"]["tracking_torque_rms"], fw["model_effects"]["tracking_torque_rms"]))]
     change = [(b or 0) - (a or 0) for b, a in zip(rep["rms_model"], rep["rms_model_effects"])]
     motors = sorted(np.argsort(change)[::-1][:3].tolist())
     eff = ", ".join(f"{e['kind']} on {res.rd.joints[e['joints'][0]]}" for e in rep["effects"]) or "none found"
@@ -145,7 +148,11 @@ def replay_html(res: DiagnosisResult, rep: dict, arrays: dict) -> str:
             f"the found effects ({html.escape(eff)}).{html.escape(skipped)} RMS of recording minus simulation on the "
             f"{html.escape(rep['rows'])}; together the effects remove {gain} of the gap "
             f"({html.escape(rep['gain_definition'])}).</p>"
-            + html_table(["motor", "joint", "RMS gap, model (N m)", "model + effects (N m)", "drop"], rows)
+            + html_table(["motor", "joint", "torque gap (inverse), model (N m)", "model + effects (N m)", "drop",
+                          "joint angle gap (forward), model (rad)", "model + effects (rad)",
+                          "tracking torque, model (N m)", "model + effects (N m)"], rows)
+            + f"<p>Forward replay: {html.escape(fw['what'])}; followed {fw['model']['followed']:.0%} (model), "
+              f"{fw['model_effects']['followed']:.0%} (model + effects).</p>"
             + f"<img src='data:image/png;base64,{png_base64(fig_replay(res, arrays, motors))}'>")
 
 

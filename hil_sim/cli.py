@@ -48,6 +48,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "with --replay")
     r.add_argument("--effects", metavar="YAML", help="effects to add to the model (effects.yaml from js2-diagnose)")
     r.add_argument("-o", "--output", metavar="OUT.mcap", help="the simulated recording (with --replay)")
+    r.add_argument("--mode", choices=("inverse", "forward"), default="inverse",
+                   help="what OUT.mcap holds: inverse = the recorded positions and the torque the simulator needs "
+                        "for them; forward = the positions the simulator reaches under the recorded torque plus a "
+                        "tracking term (default inverse; both are compared and printed)")
+    r.add_argument("--bandwidth", type=float, default=5.0, metavar="HZ",
+                   help="bandwidth of the forward replay's tracking term (default 5 Hz)")
     return p
 
 
@@ -73,8 +79,10 @@ def _replay(args) -> int:
         return 2
     from .replay import replay_recording, write_replay_log
     try:
-        rep = replay_recording(args.replay, args.model, args.effects)
-        out = write_replay_log(rep, args.replay, args.model, args.output, args.effects)
+        if not args.bandwidth > 0:
+            raise Js2Error(f"--bandwidth {args.bandwidth}: must be > 0 Hz")
+        rep = replay_recording(args.replay, args.model, args.effects, bandwidth_hz=args.bandwidth)
+        out = write_replay_log(rep, args.replay, args.model, args.output, args.effects, mode=args.mode)
     except Js2Error as e:
         print(f"js2-sim: error: {e}", file=sys.stderr)
         return 2
@@ -87,12 +95,20 @@ def _replay(args) -> int:
     before = rep.rms("model")
     after = rep.rms("effects") if rep.tau_effects is not None else None
     print(f"js2-sim: replayed {args.replay} through {args.model}" + (f" + {args.effects}" if args.effects else "")
-          + f" (inverse dynamics, {len(rep.t)} samples); RMS recording - simulation on the moving samples, torque band:")
+          + f" ({len(rep.t)} samples; {args.mode} replay written)\ninverse replay (the recorded motion prescribed): "
+            f"RMS recorded - simulated torque on the moving samples, torque band:")
     for i, j in enumerate(rep.joints):
         line = f"  {j:<14} model {before[i]:.4g} N*m"
         if after is not None:
             line += f"   model + effects {after[i]:.4g} N*m"
         print(line)
+    kinds = ["model"] + (["effects"] if args.effects else [])
+    print(f"forward replay (recorded torque + tracking at {args.bandwidth:g} Hz): RMS recorded - simulated joint "
+          f"angle; followed " + ", ".join(f"{k} {rep.followed(k):.0%}" for k in kinds) + " of the samples:")
+    pos = {k: rep.position_rms(k) for k in kinds}
+    for i, j in enumerate(rep.joints):
+        print(f"  {j:<14} " + "   ".join(f"{'model' if k == 'model' else 'model + effects'} {pos[k][i]:.4g} rad"
+                                         for k in kinds))
     print(f"-> {out}")
     return 0
 

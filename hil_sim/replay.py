@@ -178,6 +178,69 @@ def inverse_replay(plant: Plant, t, q_motor, dq_motor, ddq_motor) -> InverseRepl
                          elastic_joints=list(plant.elastic_joints))
 
 
+@dataclass
+class ForwardReplay:
+    """The plant integrated under the recorded torque plus a tracking PD (arrays (N, n), motor side)."""
+    q_motor: np.ndarray                 # rad, simulated
+    tau_pd: np.ndarray                  # N*m, what the tracking term added to the recorded torque
+    bandwidth_hz: float                 # of the tracking term
+
+
+def forward_replay(plant: Plant, t, q_motor, dq_motor, tau_motor, runs=None, bandwidth_hz: float = 5.0,
+                   damping: float = 1.0) -> ForwardReplay:
+    """Forward replay: the plant (:meth:`Plant.step`, its integrator, stiction and effects) driven by the recorded
+    motor torque ``tau_motor`` plus a tracking term on the recorded motion that keeps it from drifting away, held
+    for each sample like a drive's command::
+
+        tau = tau_recorded + M_z(theta) (w^2 (theta_rec - theta) + 2 zeta w (theta_rec_d - theta_d)),
+        w = 2 pi bandwidth_hz
+
+    (the plant's own mass matrix: every motor tracks with the same bandwidth whatever its inertia, so the loop is
+    as stable on a light wrist as on the shoulder). A model that matches the recording needs little tracking torque
+    and follows closely: the simulated positions and the tracking torque are the gaps. The state is reset to the
+    recording at the start of every run (``runs``: [start, stop) index pairs of contiguous samples; default one).
+    Rows outside the runs, or after the plant left the recording by more than 1 rad, are NaN."""
+    q_motor, dq_motor, tau_motor = (np.asarray(x, float) for x in (q_motor, dq_motor, tau_motor))
+    t = np.asarray(t, float)
+    N, n = q_motor.shape
+    runs = runs or [(0, N)]
+    d = plant.dyn
+    w = 2 * np.pi * bandwidth_hz
+    kp, kd = w ** 2, 2 * damping * w
+    q_sim = np.full((N, n), np.nan)
+    tau_pd = np.full((N, n), np.nan)
+    for a, b in runs:
+        ok = np.all(np.isfinite(q_motor[a:b]) & np.isfinite(dq_motor[a:b]) & np.isfinite(tau_motor[a:b]), axis=1)
+        if not ok.any():
+            continue
+        plant.reset()
+        s0 = a + int(np.argmax(ok))
+        plant.set_state(q_motor[s0], dq_motor[s0])
+        for s in range(s0, b):
+            q, dq = plant.q_motor, plant.dq_motor
+            e = q_motor[s] - q
+            if not np.all(np.abs(e) < 1.0):
+                break                                      # left the recording: the model cannot follow it
+            q_sim[s] = q
+            if not np.all(np.isfinite(tau_motor[s])) or s + 1 >= b:
+                continue
+            M = d.mass_matrix_z(d.Kp @ q + d.off_p)[:n, :n] if not d.ne else \
+                d.mass_matrix_z(d.q_link(plant._z))[:n, :n]
+            pd = M @ (kp * e + kd * (dq_motor[s] - dq))
+            tau_pd[s] = pd
+            plant.step(tau_motor[s] + pd, float(t[s + 1] - t[s]))
+    return ForwardReplay(q_motor=q_sim, tau_pd=tau_pd, bandwidth_hz=bandwidth_hz)
+
+
+def to_motor_side(tau_log: np.ndarray, drives, offsets: np.ndarray | None = None) -> np.ndarray:
+    """Recorded torques (N, n) on the motor side (inverse of :func:`to_log_side`): offsets removed, joint-side
+    torques carried with ``K^T`` (row-wise ``tau_j K``)."""
+    x = tau_log - (0.0 if offsets is None else offsets)
+    if str(drives.torque_side) == "joint":
+        x = x @ np.asarray(drives.gear_ratio_matrix, float)
+    return x
+
+
 def to_log_side(tau_motor: np.ndarray, drives, offsets: np.ndarray | None = None) -> np.ndarray:
     """Motor torques (N, n) on the recording's torque side (joint: ``K^-T tau_m``, row-wise), plus offsets."""
     out = tau_motor
@@ -236,25 +299,44 @@ def rms_per_joint(err: np.ndarray, rows: np.ndarray) -> np.ndarray:
 
 @dataclass
 class RecordingReplay:
-    """A recording replayed through the model (``model``) and the model plus effects (``effects``), log side."""
+    """A recording replayed through the model and through the model plus effects (log side, filtered like the
+    recorded torque): the inverse replay's torques, the forward replay's positions and tracking torques."""
     t: np.ndarray
     tau_meas: np.ndarray                # N*m, filtered like identification filters torque
-    tau_model: np.ndarray               # N*m, replay of the model, same filter
-    tau_effects: np.ndarray | None      # N*m, replay of the model + effects, same filter
+    tau_model: np.ndarray               # N*m, inverse replay of the model, same filter
+    tau_effects: np.ndarray | None      # N*m, inverse replay of the model + effects, same filter
     tau_effects_raw: np.ndarray         # N*m, unfiltered (what the simulated recording carries)
     rows: np.ndarray                    # (N, n) bool: usable and moving (>= min_speed rad/s at the joint)
     joints: list[str]
     notes: list[str]
     signals: object
+    forward: list = field(default_factory=list)    # ForwardReplay of the model (and of the model + effects)
 
     def rms(self, which: str, rows: np.ndarray | None = None) -> np.ndarray:
+        """Per joint RMS of recorded - simulated torque (inverse replay), on ``rows`` (default: moving samples)."""
         tau = self.tau_model if which == "model" else self.tau_effects
         return rms_per_joint(self.tau_meas - tau, self.rows if rows is None else rows & self.rows)
 
+    def position_rms(self, which: str, rows: np.ndarray | None = None) -> np.ndarray:
+        """Per joint RMS of recorded - simulated joint angle (forward replay, rad) on ``rows`` (default: usable)."""
+        fr = self.forward[0 if which == "model" else -1]
+        K = np.asarray(self.signals.extra["K"], float)
+        err = (self.signals.q_motor - fr.q_motor) @ K.T                  # joint side: K (theta_rec - theta_sim)
+        keep = self.signals.keep[:, None] if rows is None else rows
+        return rms_per_joint(np.where(np.isfinite(fr.q_motor), err, np.nan), keep & np.ones_like(err, bool))
 
-def replay_recording(recording, model_path, effects_path=None, min_speed: float = 0.01) -> RecordingReplay:
+    def followed(self, which: str) -> float:
+        """Share of the usable samples the forward replay followed (did not leave the recording by 1 rad)."""
+        fr = self.forward[0 if which == "model" else -1]
+        keep = self.signals.keep
+        return float(np.mean(np.isfinite(fr.q_motor[keep, 0]))) if keep.any() else 0.0
+
+
+def replay_recording(recording, model_path, effects_path=None, min_speed: float = 0.01,
+                     forward: bool = True, bandwidth_hz: float = 5.0) -> RecordingReplay:
     """Replay ``recording`` (a js2 log) through the model in ``model_path`` and, with ``effects_path``, through the
-    model plus those effects; compare with the recorded torques (module docstring)."""
+    model plus those effects: inverse replay (torques) and, with ``forward``, forward replay (positions and the
+    tracking torque at ``bandwidth_hz``); module docstring."""
     from js2spec.log import read_log
     from js2spec.model import load_model
 
@@ -274,23 +356,32 @@ def replay_recording(recording, model_path, effects_path=None, min_speed: float 
     if effects_path is not None:
         effects, notes = load_effects_file(effects_path, model.n, list(drives.joints))
     sig = recording_motion(log, model)
+    K = np.asarray(drives.gear_ratio_matrix, float)
+    sig.extra["K"] = K
     off = model_offsets(model)
-    runs = []
+    tau_rec_motor = to_motor_side(sig.tau, drives, off)
+    runs, fwd = [], []
     for eff in ([[]] + ([effects] if effects_path is not None else [])):
         plant = model_plant(model, drives, eff, effects_path)
         rep = inverse_replay(plant, sig.t, sig.q_motor, sig.dq_motor, sig.ddq_motor)
         runs.append(to_log_side(rep.tau_motor, drives, off))
-    K = np.asarray(drives.gear_ratio_matrix, float)
+        if forward:
+            fwd.append(forward_replay(model_plant(model, drives, eff, effects_path), sig.t, sig.q_motor,
+                                      sig.dq_motor, tau_rec_motor, runs=sig.runs, bandwidth_hz=bandwidth_hz))
     moving = np.abs(np.nan_to_num(sig.dq_motor) @ K.T) >= min_speed
     good = sig.keep[:, None] & moving & np.isfinite(sig.tau)
     filt = [sig.filter_like_torque(np.nan_to_num(r)) for r in runs]
     return RecordingReplay(t=sig.t, tau_meas=sig.tau, tau_model=filt[0], tau_effects=filt[1] if len(filt) > 1 else None,
-                           tau_effects_raw=runs[-1], rows=good, joints=list(drives.joints), notes=notes, signals=sig)
+                           tau_effects_raw=runs[-1], rows=good, joints=list(drives.joints), notes=notes, signals=sig,
+                           forward=fwd)
 
 
-def write_replay_log(rep: RecordingReplay, recording, model_path, out, effects_path=None) -> Path:
-    """The simulated recording: the recorded motor positions and events, the simulator's torque (the model plus
-    the effects when given; unfiltered, on the recording's torque side) and current ``tau / k_t`` (motor side)."""
+def write_replay_log(rep: RecordingReplay, recording, model_path, out, effects_path=None,
+                     mode: str = "inverse") -> Path:
+    """The simulated recording (the model plus the effects when given), with the recording's events.
+    ``inverse``: the recorded motor positions and the simulator's torque (unfiltered). ``forward``: the positions
+    the plant reached and the torque that drove it (recorded + tracking), invalid where it left the recording.
+    Torques on the recording's torque side, current ``tau / k_t`` for motor-side torques."""
     from js2spec.log import LogWriter, read_log
     from js2spec.model import load_model
 
@@ -299,9 +390,16 @@ def write_replay_log(rep: RecordingReplay, recording, model_path, out, effects_p
     sig = rep.signals
     drives = log.drives
     fs = sig.fs
-    valid = np.all(np.isfinite(rep.tau_effects_raw), axis=1) & np.all(np.isfinite(sig.q_motor_raw), axis=1)
+    if mode == "forward":
+        fr = rep.forward[-1]
+        tau_raw = to_log_side(to_motor_side(sig.tau, drives, model_offsets(model)) + fr.tau_pd, drives,
+                              model_offsets(model))
+        q_out = fr.q_motor
+    else:
+        tau_raw, q_out = rep.tau_effects_raw, sig.q_motor_raw
+    valid = np.all(np.isfinite(tau_raw), axis=1) & np.all(np.isfinite(q_out), axis=1)
     kt = np.asarray(drives.torque_constant, float)
-    tau = np.nan_to_num(rep.tau_effects_raw)
+    tau = np.nan_to_num(tau_raw)
     current = None
     if str(drives.torque_side) == "motor":
         current = tau / np.where(kt > 0, kt, 1.0)
@@ -316,12 +414,12 @@ def write_replay_log(rep: RecordingReplay, recording, model_path, out, effects_p
                 e = ev[ei]
                 w.event(e["t"], e["kind"], e["trial"], **{a: b for a, b in e.items() if a not in ("t", "kind", "trial")})
                 ei += 1
-            w.feedback(int(round((tk - t0) * fs)), tk, np.nan_to_num(sig.q_motor_raw[k]), tau[k],
+            w.feedback(int(round((tk - t0) * fs)), tk, np.nan_to_num(q_out[k]), tau[k],
                        motor_current=None if current is None else current[k], valid=[bool(valid[k])] * len(kt))
         while ei < len(ev):
             e = ev[ei]
             w.event(e["t"], e["kind"], e["trial"], **{a: b for a, b in e.items() if a not in ("t", "kind", "trial")})
             ei += 1
-        w.metadata("replay", {"recording": str(recording), "model": str(model.path), "mode": "inverse dynamics",
+        w.metadata("replay", {"recording": str(recording), "model": str(model.path), "mode": f"{mode} replay",
                               "effects": str(effects_path) if effects_path else "none"})
     return Path(out)

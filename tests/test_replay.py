@@ -60,6 +60,33 @@ def test_inverse_replay_returns_the_torque_that_drove_the_plant():
     np.testing.assert_allclose(back, tau, atol=1e-9)
 
 
+def test_forward_replay_of_the_plants_own_torque_retraces_its_motion():
+    """The plant driven by a torque, then replayed forward from the same start with that torque: it retraces the
+    motion (the tracking term stays ~0); a plant without the payload drifts off and needs tracking."""
+    from hil_sim.plant import Plant
+    from hil_sim.replay import forward_replay
+    from js2spec.robot import load_robot
+
+    robot = load_robot("js2")
+    eff = [{"kind": "stribeck", "joints": [0], "velocity": 3.0},
+           {"kind": "payload_change", "mass": 0.4, "com": [0.03, 0.0, 0.02]}]
+    plant = Plant(robot, seed=1, effects=eff)
+    plant.reset()
+    dt = 0.002
+    t = np.arange(0, 2.0, dt)
+    tau = plant.gravity_torque() + 0.1 * np.sin(2 * np.pi * 0.8 * t)[:, None] * np.array([0.3, 1.0, 0.5, 0.1, 0.1, 0.1])
+    q, dq = [], []
+    for s in range(len(t)):
+        q.append(plant.q_motor)
+        dq.append(plant.dq_motor)
+        plant.step(tau[s], dt)
+    q, dq = np.array(q), np.array(dq)
+    same = forward_replay(Plant(robot, seed=1, effects=eff), t, q, dq, tau)
+    other = forward_replay(Plant(robot, seed=1), t, q, dq, tau)
+    assert np.nanmax(np.abs(same.q_motor - q)) < 1e-9 and np.nanmax(np.abs(same.tau_pd)) < 1e-6
+    assert np.nanmax(np.abs(other.q_motor - q)) > 1e-3 and np.nanmax(np.abs(other.tau_pd)) > 1e-3
+
+
 def test_elastic_joint_replay_follows_the_forward_simulation():
     """joint_elasticity: the motors' motion of a forward run of the elastic plant, prescribed; the replay simulates
     the deflection and needs the torque the forward run applied (within 5 % of its RMS; a rigid replay is off by
@@ -113,6 +140,16 @@ def test_payload_gap_shrinks_on_the_report_rows_with_the_found_effects(payload_d
     assert rep["gain"] == pytest.approx(0.977, abs=0.03)
     assert rep["agreement_with_diagnosis_prediction"] < 1e-9
     assert "report rows" in rep["rows"]
+    # forward replay (recorded torque + 5 Hz tracking): the joint angles follow the recording more closely with the
+    # payload (docs/diagnosis.md: j3 2.8 -> 0.17 mrad, j5 4.7 -> 0.29 mrad), on every joint, and need less tracking
+    fw = rep["forward"]
+    p0, p1 = np.array(fw["model"]["position_rms"]), np.array(fw["model_effects"]["position_rms"])
+    assert fw["model"]["followed"] == 1.0 and fw["model_effects"]["followed"] == 1.0
+    assert np.all(p1 <= p0 * 1.01)
+    assert p0[2] == pytest.approx(2.8e-3, rel=0.2) and p1[2] == pytest.approx(0.17e-3, rel=0.4)
+    assert p0[4] == pytest.approx(4.7e-3, rel=0.2) and p1[4] == pytest.approx(0.29e-3, rel=0.4)
+    t0, t1 = np.array(fw["model"]["tracking_torque_rms"]), np.array(fw["model_effects"]["tracking_torque_rms"])
+    assert t1[1] < 0.5 * t0[1] and t1[2] < 0.5 * t0[2]
     html = (out / "report.html").read_text()
     assert "Simulation against the recording" in html
     assert html.count("data:image/png;base64") >= 3
@@ -127,6 +164,7 @@ def test_js2_sim_replay_writes_a_simulated_recording(payload_diag, tmp_path, cap
     assert main(["--replay", str(rec), "--model", str(clean_model()), "--effects", str(out / "effects.yaml"),
                  "-o", str(sim)]) == 0
     text = capsys.readouterr().out
+    assert "forward replay" in text and "followed model 100%, effects 100%" in text
     rows = {m.group(1): (float(m.group(2)), float(m.group(3))) for m in
             re.finditer(r"^\s+(j\d)\s+model ([\d.e-]+) N\*m\s+model \+ effects ([\d.e-]+) N\*m", text, re.M)}
     assert set(rows) == {f"j{i}" for i in range(1, 7)}
@@ -141,6 +179,16 @@ def test_js2_sim_replay_writes_a_simulated_recording(payload_diag, tmp_path, cap
     # stiction and the filtered motion differ): within 10 % of its RMS (measured 7 %)
     tr, ts = orig.feedback.torque[:n], log.feedback.torque[:n]
     assert np.sqrt(np.mean((tr - ts) ** 2)) < 0.10 * np.sqrt(np.mean(tr ** 2))
+    # --mode forward: the positions the plant reached (with the payload, within 1 mrad at the joints of 1:50-1:100
+    # gears: 0.1 rad at the motors)
+    fwd = tmp_path / "fwd.mcap"
+    assert main(["--replay", str(rec), "--model", str(clean_model()), "--effects", str(out / "effects.yaml"),
+                 "-o", str(fwd), "--mode", "forward"]) == 0
+    lf = read_log(fwd)
+    m = min(len(lf.feedback), len(orig.feedback))
+    assert m > 0.95 * len(orig.feedback) and lf.meta["source"] == "hil_sim:replay"
+    dqm = lf.feedback.motor_position[:m] - orig.feedback.motor_position[:m]
+    assert np.max(np.abs(dqm)) < 0.1 and np.max(np.abs(dqm)) > 0
 
 
 def _other_arm(src, dst):

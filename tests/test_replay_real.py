@@ -44,6 +44,10 @@ def test_real_recording_replay_gap_shrinks_with_the_found_payload(kuka_payload):
     assert np.all(after <= before * 1.01)               # no joint gets worse
     assert before[6] == pytest.approx(0.46, rel=0.1) and after[6] == pytest.approx(0.34, rel=0.25)   # the least
     assert rep["agreement_with_diagnosis_prediction"] < 1e-9
+    fw = rep["forward"]
+    p0, p1 = np.array(fw["model"]["position_rms"]), np.array(fw["model_effects"]["position_rms"])
+    print("forward position gap (rad)", np.round(p0, 4).tolist(), np.round(p1, 4).tolist(), fw["model"]["followed"],
+          fw["model_effects"]["followed"])
 
 
 def test_js2_sim_replays_a_real_recording(kuka_payload, capsys):
