@@ -17,6 +17,10 @@ the torque::
 
     M_ee delta_dd = Q_spring - (J^T nle)_e - M_em theta_m_dd,    tau_m - f + cog = M_mm theta_m_dd + M_me delta_dd + (J^T nle)_m
 
+Forward replay (:func:`forward_replay`): the plant integrated by :meth:`Plant.step` under the recorded torque plus
+a tracking term ``M_z(theta) (w^2 e + 2 w e_dot)`` that keeps it near the recording; the joint-angle gap and the
+tracking torque measure how far the model is from the arm.
+
 The model's torque offsets (``off_<k>``, ``js2-identify --offsets``) are added on the recording's torque side (a
 sensor zero, not physics). Joint-side recordings (torque sensors, ``torque_side: joint``) are compared on the joint
 side, ``tau_j = K^-T tau_m``; their model's friction and ``J_a`` were identified on the joint side and are carried to
@@ -224,8 +228,7 @@ def forward_replay(plant: Plant, t, q_motor, dq_motor, tau_motor, runs=None, ban
             q_sim[s] = q
             if not np.all(np.isfinite(tau_motor[s])) or s + 1 >= b:
                 continue
-            M = d.mass_matrix_z(d.Kp @ q + d.off_p)[:n, :n] if not d.ne else \
-                d.mass_matrix_z(d.q_link(plant._z))[:n, :n]
+            M = d.mass_matrix_z(d.perm @ plant.q_joint)[:n, :n]      # link angles in pinocchio order
             pd = M @ (kp * e + kd * (dq_motor[s] - dq))
             tau_pd[s] = pd
             plant.step(tau_motor[s] + pd, float(t[s + 1] - t[s]))
