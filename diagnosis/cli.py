@@ -111,10 +111,10 @@ def main(argv=None) -> int:
                                       if b is not None and a is not None)
               + (f"; gain {rep['gain']:.1%}" if rep["gain"] is not None else ""))
         fw = rep["forward"]
+        pairs = zip(fw["model"]["position_rms"], fw["model_effects"]["position_rms"])
         print("forward replay (recorded torque + 5 Hz tracking), RMS joint angle gap on the report rows (rad), model "
-              "-> model + effects: " + ", ".join(
-                  f"joint {i + 1} {b:.3g} -> {a:.3g}" for i, (b, a) in enumerate(zip(
-                      fw["model"]["position_rms"], fw["model_effects"]["position_rms"])) if b is not None and a is not None))
+              "-> model + effects: " + ", ".join(f"joint {i + 1} {b:.3g} -> {a:.3g}" for i, (b, a) in enumerate(pairs)
+                                                 if b is not None and a is not None))
     print(f"-> {paths['report']}, {paths['model'].name}, {paths['effects'].name}, {paths['json'].name}")
     return 1 if (args.strict and d["findings"]) else 0
 

@@ -15,7 +15,8 @@ through :class:`hil_sim.friction.Friction` (Stribeck, asymmetry, load-dependent 
 generalized coordinates ``z = [theta_m, delta]``, its mass matrix ``M_z`` and spring law), and the motor rows give
 the torque::
 
-    M_ee delta_dd = Q_spring - (J^T nle)_e - M_em theta_m_dd,    tau_m - f + cog = M_mm theta_m_dd + M_me delta_dd + (J^T nle)_m
+    M_ee delta_dd = Q_spring - (J^T nle)_e - M_em theta_m_dd
+    tau_m - f + cog = M_mm theta_m_dd + M_me delta_dd + (J^T nle)_m
 
 Forward replay (:func:`forward_replay`): the plant integrated by :meth:`Plant.step` under the recorded torque plus
 a tracking term ``M_z(theta) (w^2 e + 2 w e_dot)`` that keeps it near the recording; the joint-angle gap and the
@@ -379,6 +380,10 @@ def replay_recording(recording, model_path, effects_path=None, min_speed: float 
                            forward=fwd)
 
 
+def _copy_event(w, e: dict) -> None:
+    w.event(e["t"], e["kind"], e["trial"], **{a: b for a, b in e.items() if a not in ("t", "kind", "trial")})
+
+
 def write_replay_log(rep: RecordingReplay, recording, model_path, out, effects_path=None,
                      mode: str = "inverse") -> Path:
     """The simulated recording (the model plus the effects when given), with the recording's events.
@@ -414,14 +419,12 @@ def write_replay_log(rep: RecordingReplay, recording, model_path, out, effects_p
         for k in range(len(sig.t)):
             tk = float(sig.t[k])
             while ei < len(ev) and ev[ei]["t"] <= tk:
-                e = ev[ei]
-                w.event(e["t"], e["kind"], e["trial"], **{a: b for a, b in e.items() if a not in ("t", "kind", "trial")})
+                _copy_event(w, ev[ei])
                 ei += 1
             w.feedback(int(round((tk - t0) * fs)), tk, np.nan_to_num(q_out[k]), tau[k],
                        motor_current=None if current is None else current[k], valid=[bool(valid[k])] * len(kt))
         while ei < len(ev):
-            e = ev[ei]
-            w.event(e["t"], e["kind"], e["trial"], **{a: b for a, b in e.items() if a not in ("t", "kind", "trial")})
+            _copy_event(w, ev[ei])
             ei += 1
         w.metadata("replay", {"recording": str(recording), "model": str(model.path), "mode": f"{mode} replay",
                               "effects": str(effects_path) if effects_path else "none"})

@@ -210,7 +210,8 @@ def test_bad_input_is_one_line_exit_2(case, tmp_path, capsys):
     from hil_sim.cli import main
 
     rec = recording(json.dumps(PAYLOAD))
-    args = {"missing_model": ["--replay", str(rec), "--model", str(tmp_path / "nomodel"), "-o", str(tmp_path / "o.mcap")],
+    args = {"missing_model": ["--replay", str(rec), "--model", str(tmp_path / "nomodel"),
+                              "-o", str(tmp_path / "o.mcap")],
             "other_arm": ["--replay", str(_other_arm(rec, tmp_path / "other.mcap")), "--model", str(clean_model()),
                           "-o", str(tmp_path / "o.mcap")],
             "no_model_flag": ["--replay", str(rec), "-o", str(tmp_path / "o.mcap")],
