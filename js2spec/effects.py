@@ -79,7 +79,9 @@ class Kind:
 EFFECT_KINDS: dict[str, Kind] = {k.name: k for k in (
     Kind("stribeck", (
         Param("velocity", "rad/s", "pos", REQUIRED, "Stribeck velocity v_s", "motor side"),
-        Param("shape", "-", "pos", 2.0, "Stribeck exponent delta")),
+        Param("shape", "-", "pos", 2.0, "Stribeck exponent delta"),
+        Param("static", "N*m", "nonneg", None, "breakaway friction f_s, the hump's top (default: the plant's "
+                                                 "static friction, sim_truth.yaml static)", "motor side")),
         "sliding friction magnitude f_c + (f_s - f_c) exp(-(|w|/v_s)^delta): near f_s at low speed, f_c at high "
         "speed (eq. 5 becomes non-linear near 0)"),
     Kind("cogging", (

@@ -89,3 +89,37 @@ def test_written_effects_yaml_carries_the_schema_units_and_parses(tmp_path, clea
                                                              "periods_per_rev": 2}])
     with pytest.raises(ConfigError, match=r"effects\.yaml.*amplitude.*>= 0"):
         effects_yaml(bad, path)
+
+
+def test_stribeck_static_is_the_breakaway_level_in_the_simulator():
+    """The schema's optional ``static`` of a Stribeck effect sets that joint's f_s (the hump's top); without it the
+    truth's f_s stays."""
+    from hil_sim.plant import Plant
+    from js2spec.robot import load_robot
+
+    robot = load_robot("js2")
+    base = Plant(robot, effects=[{"kind": "stribeck", "joints": [0], "velocity": 2.0}])
+    with_fs = Plant(robot, effects=[{"kind": "stribeck", "joints": [0], "velocity": 2.0, "static": 0.08}])
+    assert with_fs.friction.static[0] == 0.08 and base.friction.static[0] != 0.08
+    assert with_fs.friction.static[1] == base.friction.static[1]
+    slow = np.zeros(6)
+    slow[0] = 1e-3
+    f_slow = with_fs.friction.sliding_at(slow)[0]
+    assert f_slow == pytest.approx(0.08 + with_fs.friction.viscous[0] * 1e-3, rel=1e-3)
+
+
+def test_a_stribeck_finding_simulates_with_its_fitted_breakaway_level():
+    """diagnosis' effects carry the fitted hump as ``static`` = the model's f_c + the fitted f_s - f_c, so a model
+    without f_s (the simultaneous method) replays the Stribeck it was diagnosed with."""
+    from types import SimpleNamespace
+
+    from diagnosis.run import DiagnosisResult
+
+    model = SimpleNamespace(friction_coulomb=np.array([0.02, 0.03]))
+    fake = SimpleNamespace(model=model, rd=SimpleNamespace(torque_side="motor", K=np.eye(2)), findings=lambda: [
+        {"effect": {"kind": "stribeck", "joints": [1], "velocity": 3.0, "shape": 2.0}, "coefficients": [0.012]},
+        {"effect": {"kind": "asymmetric_friction", "joints": [0], "negative_scale": 1.3}, "coefficients": [0.0, 0.1]}])
+    eff = DiagnosisResult.sim_effects(fake)
+    assert eff[0]["static"] == pytest.approx(0.042) and "static" not in eff[1]
+    parsed = parse_effects(eff, 2, "diagnosis")
+    assert parsed[0]["static"] == pytest.approx(0.042)
