@@ -242,3 +242,8 @@ def test_stribeck_finding_replays_with_its_fitted_breakaway(tmp_path):
     before, after = np.array(rep["rms_model"]), np.array(rep["rms_model_effects"])
     assert before[1] == pytest.approx(1.53e-3, rel=0.15) and after[1] == pytest.approx(0.99e-3, rel=0.2)
     np.testing.assert_allclose(np.delete(after, 1), np.delete(before, 1), rtol=1e-9)
+    assert rep["gain"] == pytest.approx(0.115, abs=0.04)
+    fw = rep["forward"]
+    p0, p1 = np.array(fw["model"]["position_rms"]), np.array(fw["model_effects"]["position_rms"])
+    assert p0[1] == pytest.approx(0.27e-3, rel=0.3) and p1[1] == pytest.approx(0.13e-3, rel=0.4)
+    np.testing.assert_allclose(p1[3:], p0[3:], rtol=0.1)        # wrist: not ahead, within 10 % either way
