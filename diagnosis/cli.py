@@ -25,7 +25,9 @@ what it does:
      walks down the ranking to the first that cuts the SELECT residual of its motors by --min-gain and beats the
      null of a plain refit of the model's own friction; accepts it, ranks again, until none passes (at most
      --max-terms); structure only the refit explains is reported 'unexplained', never named;
-  4. reports the gains on REPORT alone, which the search never saw.
+  4. reports the gains on REPORT alone, which the search never saw;
+  5. with --replay: replays the recorded motion through the simulator (hil_sim, inverse dynamics) with the model,
+     then with the model plus the found effects, and compares the simulated torques with the recording on REPORT.
 
 writes OUTDIR/diagnosis.json, OUTDIR/report.html, OUTDIR/model_diagnosed.yaml (the model plus `unmodelled:`),
 OUTDIR/effects.yaml (the found effects in hil_sim's format, to simulate them). Exit code 0; 1 with --strict when
@@ -53,6 +55,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--min-speed", type=float, default=0.01,
                    help="rad/s at the JOINT (so any gear ratio): slower samples of a joint are left out, friction "
                         "being undefined at rest (default 0.01; motor i uses min-speed / max_j |K_ji|)")
+    p.add_argument("--replay", action="store_true",
+                   help="also replay the recorded motion through the simulator (hil_sim) with the model, then with "
+                        "the model plus the found effects, and compare with the recording on the report rows "
+                        "(diagnosis.json 'replay', a report section)")
     p.add_argument("--strict", action="store_true", help="exit 1 when the model is found incomplete")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     return p
@@ -73,7 +79,7 @@ def main(argv=None) -> int:
         from js2spec.files import check_output_folder
         check_output_folder(args.outdir)
         res = diagnose(args.model, args.recordings, opt)
-        paths = write_outputs(res, args.outdir)
+        paths = write_outputs(res, args.outdir, replay=args.replay)
     except Js2Error as exc:
         from js2spec.log import damage_notes
         notes = damage_notes(args.recordings)
@@ -97,6 +103,20 @@ def main(argv=None) -> int:
         print(f"  unexplained              {u['joint']:<12} {u['fraction_of_residual']:.0%} of its select residual, "
               f"largest {u['regime']}")
     print(f"report gain of the found terms together (rows the search never saw): {d['holdout_gain']:.1%}")
+    if args.replay:
+        import json
+
+        rep = json.loads(paths["json"].read_text())["replay"]
+        print("replay through hil_sim, RMS recording - simulation on the report rows (N*m), model -> model + "
+              "effects: " + ", ".join(f"motor {i + 1} {b:.3g} -> {a:.3g}" for i, (b, a) in
+                                      enumerate(zip(rep["rms_model"], rep["rms_model_effects"]))
+                                      if b is not None and a is not None)
+              + (f"; gain {rep['gain']:.1%}" if rep["gain"] is not None else ""))
+        fw = rep["forward"]
+        pairs = zip(fw["model"]["position_rms"], fw["model_effects"]["position_rms"])
+        print("forward replay (recorded torque + 5 Hz tracking), RMS joint angle gap on the report rows (rad), model "
+              "-> model + effects: " + ", ".join(f"joint {i + 1} {b:.3g} -> {a:.3g}" for i, (b, a) in enumerate(pairs)
+                                                 if b is not None and a is not None))
     print(f"-> {paths['report']}, {paths['model'].name}, {paths['effects'].name}, {paths['json'].name}")
     return 1 if (args.strict and d["findings"]) else 0
 

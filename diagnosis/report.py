@@ -11,6 +11,7 @@ import numpy as np
 import yaml
 
 from identification.report import html_table, png_base64, pyplot
+from js2spec.effects import parse_effects, units_comment
 
 from .run import DiagnosisResult
 
@@ -127,12 +128,80 @@ def next_step(d: dict) -> str:
     return "Nothing to change."
 
 
-def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
+def effects_yaml(res: DiagnosisResult, path: Path) -> str:
+    """The found effects in the simulator's config form, validated against the one effect schema
+    (:mod:`js2spec.effects`, which ``hil_sim`` parses with), parameters in the schema's order and units."""
+    effects = parse_effects(res.sim_effects(), res.rd.n, source=path, joints=res.rd.joints)
+    head = ("# effects the diagnosis found; simulate them with hil_sim (sim_truth.yaml `effects:`, Plant(effects=...)\n"
+            "# or js2-sim --replay RECORDING --model MODEL --effects THIS_FILE). Units (js2spec.effects):\n")
+    return head + units_comment() + "\n" + yaml.safe_dump(
+        {"effects": _jsonable([e.as_config() for e in effects])}, sort_keys=False)
+
+
+def fig_replay(res: DiagnosisResult, arrays: dict, motors: list[int]):
+    """Recording vs simulation over the report rows (gaps shown as gaps), one panel per motor: measured torque, the
+    simulator with the model, the simulator with the model plus the found effects."""
+    plt = pyplot()
+    rd = res.rd
+    fig, axs = plt.subplots(len(motors), 1, figsize=(12, 2.4 * len(motors)), squeeze=False)
+    for ax, i in zip(axs[:, 0], motors):
+        r = arrays["rows"][:, i]
+        t = rd.t
+        for y, style, lab in ((rd.tau_meas[:, i], "k-", "recording"), (arrays["tau_model"][:, i], "C0-",
+                                                                      "simulator: model"),
+                              (arrays["tau_effects"][:, i], "C3-", "simulator: model + found effects")):
+            ax.plot(t, np.where(r, y, np.nan), style, lw=0.8, label=lab)
+        ax.set_ylabel(f"motor {i + 1} torque (N m)")
+    axs[0, 0].legend(fontsize=7, loc="upper right")
+    axs[-1, 0].set_xlabel("t (s), report rows (moving samples; gaps are rows not compared)")
+    fig.suptitle("Recording vs simulation (hil_sim replay of the recorded motion)", fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def replay_html(res: DiagnosisResult, rep: dict, arrays: dict) -> str:
+    """The report's replay section: a table per motor and the torque-over-time figure of the motors the effects
+    change most."""
+    fw = rep["forward"]
+    rows = [[f"motor {i + 1}", j, _g(b), _g(a), f"{x:.0%}" if x is not None else "–", _g(p0), _g(p1), _g(t0), _g(t1)]
+            for i, (j, b, a, x, p0, p1, t0, t1) in enumerate(zip(
+                rep["joints"], rep["rms_model"], rep["rms_model_effects"], rep["drop"],
+                fw["model"]["position_rms"], fw["model_effects"]["position_rms"],
+                fw["model"]["tracking_torque_rms"], fw["model_effects"]["tracking_torque_rms"]))]
+    change = [(b or 0) - (a or 0) for b, a in zip(rep["rms_model"], rep["rms_model_effects"])]
+    motors = sorted(np.argsort(change)[::-1][:3].tolist())
+    eff = ", ".join(f"{e['kind']} on {res.rd.joints[e['joints'][0]]}" for e in rep["effects"]) or "none found"
+    gain = f"{rep['gain']:.1%}" if rep["gain"] is not None else "–"
+    skipped = (f" Not simulated (no hil_sim implementation): {', '.join(rep['not_simulated'])}."
+               if rep["not_simulated"] else "")
+    return (f"<h2>Simulation against the recording</h2><p>The recorded motion replayed through the simulator "
+            f"(<code>hil_sim</code>, {html.escape(rep['mode'])}) with the identified model, then with the model plus "
+            f"the found effects ({html.escape(eff)}).{html.escape(skipped)} RMS of recording minus simulation on the "
+            f"{html.escape(rep['rows'])}; together the effects remove {gain} of the gap "
+            f"({html.escape(rep['gain_definition'])}).</p>"
+            + html_table(["motor", "joint", "torque gap (inverse), model (N m)", "model + effects (N m)", "drop",
+                          "joint angle gap (forward), model (rad)", "model + effects (rad)",
+                          "tracking torque, model (N m)", "model + effects (N m)"], rows)
+            + f"<p>Forward replay: {html.escape(fw['what'])}; followed {fw['model']['followed']:.0%} (model), "
+              f"{fw['model_effects']['followed']:.0%} (model + effects).</p>"
+            + f"<img src='data:image/png;base64,{png_base64(fig_replay(res, arrays, motors))}'>")
+
+
+def write_outputs(res: DiagnosisResult, outdir: str | Path, replay: bool = False) -> dict[str, Path]:
+    """``replay``: also replay the recording through hil_sim (``diagnosis.replay``): ``diagnosis.json`` ``replay``
+    and a report section."""
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     d = _jsonable(res.to_dict())
     d["headline"] = headline(d)
     d["next_step"] = next_step(d)
+    rep_html = ""
+    if replay:
+        from .replay import replay_section
+
+        rep, arrays = replay_section(res)
+        d["replay"] = _jsonable(rep)
+        rep_html = replay_html(res, d["replay"], arrays)
     paths = {"json": out / "diagnosis.json", "model": out / "model_diagnosed.yaml", "effects": out / "effects.yaml",
              "report": out / "report.html"}
     paths["json"].write_text(json.dumps(d, indent=1))
@@ -141,9 +210,7 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
         dst = out / res.model.urdf_path.name
         if dst.resolve() != res.model.urdf_path.resolve():
             shutil.copyfile(res.model.urdf_path, dst)
-    paths["effects"].write_text("# effects the diagnosis found; simulate them with hil_sim (sim_truth.yaml "
-                                "`effects:` or Plant(effects=...))\n"
-                                + yaml.safe_dump({"effects": _jsonable(res.sim_effects())}, sort_keys=False))
+    paths["effects"].write_text(effects_yaml(res, paths["effects"]))
     figs = [("Held-out residual per motor", png_base64(fig_rms(res)))]
     for k in range(len(res.accepted)):
         figs.append((f"Finding {k + 1}", png_base64(fig_finding(res, k))))
@@ -171,6 +238,8 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path) -> dict[str, Path]:
                     "fit gain", "passes"], cand)]
     for title, png in figs:
         body.append(f"<h2>{html.escape(title)}</h2><img src='data:image/png;base64,{png}'>")
+    if rep_html:
+        body.append(rep_html)
     body.append("<h2>Next step</h2><p>" + html.escape(next_step(d)) + "</p><p><small>Gains: "
                 + html.escape(d["holdout_gain_definition"]) + ". Torques in N m, motor side; speeds in rad/s; "
                 "parameters in the units of hil_sim's effects (frames named in each finding).</small></p>")

@@ -136,8 +136,20 @@ class DiagnosisResult:
         return d
 
     def sim_effects(self) -> list[dict]:
-        """The found effects as ``hil_sim`` effect configs (Plant(effects=...), sim_truth.yaml ``effects:``)."""
-        return [dict(f["effect"]) for f in self.findings()]
+        """The found effects as ``hil_sim`` effect configs (Plant(effects=...), sim_truth.yaml ``effects:``). A
+        Stribeck finding carries its fitted breakaway level ``static`` = the model's f_c (motor side) + the fitted
+        hump, so it simulates as found even with a model without f_s (the simultaneous method)."""
+        out = []
+        for f in self.findings():
+            e = dict(f["effect"])
+            if e.get("kind") == "stribeck" and e.get("static") is None and f.get("coefficients"):
+                j = int(e["joints"][0])
+                fc = float(self.model.friction_coulomb[j])
+                if self.rd.torque_side == "joint":
+                    fc *= abs(float(self.rd.K[j, j]))
+                e["static"] = max(0.0, fc + float(f["coefficients"][0]))
+            out.append(e)
+        return out
 
 
 def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,

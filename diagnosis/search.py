@@ -12,7 +12,9 @@ Once a candidate is accepted, its coefficients are estimated again on FIT + SELE
 
 The ladder: candidates are ranked by select gain over all motors; the search walks down the ranking and accepts the
 first that passes every test (plausible parameters; fit and select gain on its own motors >= ``min_gain``; select
-gain over all motors >= ``min_gain_all``; and the null below), adds its torque to the model and ranks again, until
+gain over all motors >= ``min_gain_all``; for a term named on a joint that reaches every motor through the inertia
+matrix (``Term.own_motor``: elasticity, backlash), select gain on that joint's own motor >= ``min_gain``; and the
+null below), adds its torque to the model and ranks again, until
 no candidate passes (at most ``max_terms`` terms) — a failing first-ranked candidate never hides a passing one.
 
 The null the data give: a term that contains a simpler one (``Term.extends``: e.g. a thermal drift contains a plain
@@ -42,6 +44,8 @@ class Scored:
     band: str
     rejected: str = ""           # why the ladder did not accept it (empty: accepted or not reached)
     note: str = ""               # why it was named instead of the candidate the ladder reached (Term.resolve)
+    term: Term | None = None     # the library term that made it (a kind may be tried in two bands)
+    select_gain_own: float = float("nan")   # select rows, motor j's alone (the joint the term is named on)
 
     def row(self, joints) -> dict:
         f = self.fitted
@@ -150,13 +154,15 @@ class MismatchSearch:
             s0 = float(np.sum(rw[sel] ** 2))
             return 1.0 - float(np.sum(new_w[sel] ** 2)) / s0 if s0 > 0 else 0.0
 
+        own_j = np.zeros_like(rows["select_rows"])
+        own_j[:, j] = rows["select_rows"][:, j]
         eff, summary, ok, why = term.effect(rd, j, h, coef, std)
         fitted = Fitted(kind=term.kind, joint=j, hyper=h, coef=coef, coef_std=std, effect=eff, summary=summary,
                         plausible=bool(ok), why_not=why)
         return Scored(fitted=fitted, fit_gain=gain(sel_fit), select_gain=gain(own["select_rows"]),
                       select_gain_all=gain(rows["select_rows"]), holdout_gain=gain(own["holdout_rows"]),
                       rms_before=_rms(r, rows["holdout_rows"]), rms_after=_rms(r - contrib, rows["holdout_rows"]),
-                      band=band)
+                      band=band, term=term, select_gain_own=gain(own_j))
 
     def _why_rejected(self, s: Scored) -> str:
         if not s.fitted.plausible:
@@ -167,6 +173,9 @@ class MismatchSearch:
             return f"fit gain {s.fit_gain:.1%} < {self.min_gain:.0%}"
         if s.select_gain_all < self.min_gain_all:
             return f"select gain over all motors {s.select_gain_all:.1%} < {self.min_gain_all:.0%}"
+        if s.term is not None and s.term.own_motor and s.select_gain_own < self.min_gain:
+            return (f"select gain on motor {s.fitted.joint + 1} itself {s.select_gain_own:.1%} < {self.min_gain:.0%}: "
+                    "what it explains is on other motors")
         return ""
 
     # -- the ladder -------------------------------------------------------------------------------------------------
@@ -211,19 +220,19 @@ class MismatchSearch:
                     break
             if best is None:
                 break
-            best = self._term(best.fitted.kind).resolve(rd, best, scored, lambda s: not self._why_rejected(s))  # one mass, two links
+            best = best.term.resolve(rd, best, scored, lambda s: not self._why_rejected(s))  # one mass, two links
             # selected on SELECT: its coefficients are now estimated on FIT + SELECT (hyper-parameter kept); the
             # report rows stay unseen
-            final = self._evaluate(rd, self._term(best.fitted.kind), best.fitted.joint, res, weights,
+            final = self._evaluate(rd, best.term, best.fitted.joint, res, weights,
                                    grid=[best.fitted.hyper], coef_rows=("fit_rows", "select_rows"))
             if final is not None and final.fitted.plausible:
                 best.fitted, best.holdout_gain, best.rms_after = final.fitted, final.holdout_gain, final.rms_after
             if getattr(best, "note", ""):
                 best.fitted.summary += f" ({best.note})"
             taken.add((best.fitted.kind, best.fitted.joint))
-            (self.references_ if self._term(best.fitted.kind).reference else self.accepted_).append(best)
+            (self.references_ if best.term.reference else self.accepted_).append(best)
             # the accepted term becomes part of the model, in both bands
-            term = self._term(best.fitted.kind)
+            term = best.term
             cols = _on_motors(term.columns(rd, best.fitted.joint, best.fitted.hyper),
                               term.motors(rd, best.fitted.joint))
             raw = cols @ best.fitted.coef
@@ -242,7 +251,7 @@ class MismatchSearch:
         or a plain refit of the model, explains the data as well)."""
         by_key = {(s.fitted.kind, s.fitted.joint): s for s in scored}
         for s in scored:
-            term = self._term(s.fitted.kind)
+            term = s.term
             for simpler_kind in term.extends:
                 simpler = by_key.get((simpler_kind, s.fitted.joint))
                 if simpler is None or not s.fitted.plausible:
@@ -259,7 +268,7 @@ class MismatchSearch:
         copy leaves on the select rows by ``Term.shift_margin``, or it is not plausible (its gain does not come from
         the tie it claims)."""
         for s in scored:
-            term = self._term(s.fitted.kind)
+            term = s.term or self._term(s.fitted.kind)
             if not hasattr(term, "shifted_columns") or not s.fitted.plausible or s.select_gain < self.min_gain:
                 continue
             j, h = s.fitted.joint, s.fitted.hyper

@@ -3,6 +3,8 @@
   js2-sim                           # serve a socketcand hub on 127.0.0.1 (ephemeral port, printed) and attach
   js2-sim --port 29536 --slcan-pty  # fixed port, plus an slcan pseudo-terminal (USB-adapter protocol)
   js2-sim -i socketcan -c vcan0     # join an existing bus instead (Linux with vcan/SocketCAN)
+  js2-sim --replay run.mcap --model runs/model --effects runs/diag/effects.yaml -o replayed.mcap
+                                    # no bus: the recording's motion through the identified model (+ effects)
 
 Physics advances one period per SYNC (lock-step, deterministic) unless --realtime (wall clock).
 """
@@ -39,6 +41,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help="SCHED_FIFO priority N for the simulator (Linux; root/CAP_SYS_NICE); 0 = off")
     p.add_argument("--cpu", type=int, metavar="C", help="run the simulator on CPU C only (Linux)")
     p.add_argument("--duration", type=float, help="exit after this many seconds (default: until Ctrl-C/SIGTERM)")
+    r = p.add_argument_group("replay a recording instead of serving a bus (hil_sim.replay)")
+    r.add_argument("--replay", metavar="RECORDING", help="a js2 log: its recorded motion is replayed through the "
+                   "identified model (inverse dynamics: the torque the simulator needs) and compared with its torques")
+    r.add_argument("--model", metavar="DIR", help="model.yaml written by js2-identify (or its folder); required "
+                   "with --replay")
+    r.add_argument("--effects", metavar="YAML", help="effects to add to the model (effects.yaml from js2-diagnose)")
+    r.add_argument("-o", "--output", metavar="OUT.mcap", help="the simulated recording (with --replay)")
+    r.add_argument("--mode", choices=("inverse", "forward"), default="inverse",
+                   help="what OUT.mcap holds: inverse = the recorded positions and the torque the simulator needs "
+                        "for them; forward = the positions the simulator reaches under the recorded torque plus a "
+                        "tracking term (default inverse; both are compared and printed)")
+    r.add_argument("--bandwidth", type=float, default=5.0, metavar="HZ",
+                   help="bandwidth of the forward replay's tracking term (default 5 Hz)")
     return p
 
 
@@ -46,11 +61,56 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from js2io.bus import console_logging
     console_logging("js2-sim")
+    if args.replay or args.model or args.effects or args.output:
+        return _replay(args)
     try:
         return _run(args)
     except Js2Error as e:
         print(f"js2-sim: error: {e}", file=sys.stderr)
         return 2
+
+
+def _replay(args) -> int:
+    """js2-sim --replay RECORDING --model DIR [--effects YAML] -o OUT.mcap: print the per-joint RMS of recording
+    minus simulation (moving samples, torque band), with the model and with the model plus the effects."""
+    if not (args.replay and args.model and args.output):
+        print("js2-sim: error: --replay RECORDING --model DIR -o OUT.mcap go together (--effects YAML optional)",
+              file=sys.stderr)
+        return 2
+    from .replay import replay_recording, write_replay_log
+    try:
+        if not args.bandwidth > 0:
+            raise Js2Error(f"--bandwidth {args.bandwidth}: must be > 0 Hz")
+        rep = replay_recording(args.replay, args.model, args.effects, bandwidth_hz=args.bandwidth)
+        out = write_replay_log(rep, args.replay, args.model, args.output, args.effects, mode=args.mode)
+    except Js2Error as e:
+        print(f"js2-sim: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        print(f"js2-sim: error: cannot write {e.filename or args.output}: {e.strerror or e}; choose another -o",
+              file=sys.stderr)
+        return 2
+    for note in rep.notes:
+        print(f"note: {note}")
+    before = rep.rms("model")
+    after = rep.rms("effects") if rep.tau_effects is not None else None
+    print(f"js2-sim: replayed {args.replay} through {args.model}" + (f" + {args.effects}" if args.effects else "")
+          + f" ({len(rep.t)} samples; {args.mode} replay written)\ninverse replay (the recorded motion prescribed): "
+            f"RMS recorded - simulated torque on the moving samples, torque band:")
+    for i, j in enumerate(rep.joints):
+        line = f"  {j:<14} model {before[i]:.4g} N*m"
+        if after is not None:
+            line += f"   model + effects {after[i]:.4g} N*m"
+        print(line)
+    kinds = ["model"] + (["effects"] if args.effects else [])
+    print(f"forward replay (recorded torque + tracking at {args.bandwidth:g} Hz): RMS recorded - simulated joint "
+          f"angle; followed " + ", ".join(f"{k} {rep.followed(k):.0%}" for k in kinds) + " of the samples:")
+    pos = {k: rep.position_rms(k) for k in kinds}
+    for i, j in enumerate(rep.joints):
+        print(f"  {j:<14} " + "   ".join(f"{'model' if k == 'model' else 'model + effects'} {pos[k][i]:.4g} rad"
+                                         for k in kinds))
+    print(f"-> {out}")
+    return 0
 
 
 def _run(args) -> int:

@@ -43,6 +43,8 @@ class Friction:
             if e.kind == "stribeck":
                 self.stribeck_velocity[j] = e["velocity"]
                 self.stribeck_shape[j] = e["shape"]
+                if e.params.get("static") is not None:      # the breakaway level the effect brings (f_s)
+                    self.static[j] = e["static"]
                 self.has_stribeck = True
             elif e.kind == "asymmetric_friction":
                 self.negative_scale[j] = e["negative_scale"]

@@ -2,9 +2,11 @@
 """Benchmark js2-diagnose on randomised simulator cases: confusion matrix and parameter errors.
 
 1. the simulated Js-2 runs the identification trials with no hidden effect; js2-identify makes the model (once);
-2. case k (seed k, fixed): a random draw of 0, 1 or 2 effects (kind, joint or link, magnitude) and a random
-   excitation + validation trajectory (the trials' Fourier seeds, centres and amplitudes drawn too, so no two cases
-   share a trajectory); the simulator records it with those effects, the model knows none of them;
+2. case k (seed k, fixed): a random draw of 0, 1 or 2 effects (kind, joint or link, magnitude), a random
+   excitation + validation trajectory (the trials' Fourier seeds, periods, harmonics, centres and amplitudes, so no
+   two cases share a trajectory), a random sample rate (250, 500 or 1000 Hz: the simulated drives' cycle) and a
+   random host controller (the trajectory controller's gains scaled by 0.6-1.6); the simulator records it with
+   those effects, the model (identified at 500 Hz) knows none of them;
 3. js2-diagnose with its defaults (no flags) names what it finds; a true effect counts as found when the same kind
    is named on the same joint (payload: the same link).
 
@@ -12,10 +14,13 @@ Prints the confusion matrix (rows: concealed kind, or `none` for a clean case; c
 joint, `nothing` when nothing was) plus the false names (named where nothing of that kind was concealed), the rates
 and the parameter errors; writes OUT/bench.json.
 
-    .venv/bin/python scripts/bench_diagnose.py [--cases 40] [--first 0] [--out runs/bench_diagnose]
+    .venv/bin/python scripts/bench_diagnose.py [--cases 48] [--first 0] [--out runs/bench_diagnose]
+        [--keep-recordings] [--record-only] [--rediagnose]
 
 Simulating a case takes about a minute on one free core; --cases sets how many are run (results are cached per
-case in OUT, so a longer run resumes).
+case in OUT/case_NNN.json, so a longer run resumes). With --keep-recordings the recordings stay in OUT/runs/, and
+--rediagnose runs only the diagnosis again on them (after a change to the diagnosis); --record-only simulates the
+cases without diagnosing them.
 """
 from __future__ import annotations
 
@@ -60,13 +65,17 @@ def draw_effect(rng: np.random.Generator, kind: str, n: int) -> dict:
     raise ValueError(kind)
 
 
+RATES_HZ = (250.0, 500.0, 1000.0)
+
+
 def draw_case(seed: int, n: int, base_trials: dict) -> dict:
-    """Case ``seed``: ~15 % clean, ~20 % two effects (different kinds, different joints), else one effect."""
+    """Case ``seed``: ~15 % clean, ~25 % two effects (different kinds, different joints), else one effect; its own
+    trajectories, sample rate and controller gains."""
     rng = np.random.default_rng(1000 + seed)
     u = rng.uniform()
-    count = 0 if u < 0.15 else (2 if u > 0.8 else 1)
+    count = 0 if u < 0.15 else (2 if u > 0.75 else 1)
     effects, used = [], set()
-    kinds = list(rng.permutation(KINDS))
+    kinds = [str(k) for k in rng.permutation(KINDS)]
     for kind in kinds:
         if len(effects) == count:
             break
@@ -81,16 +90,23 @@ def draw_case(seed: int, n: int, base_trials: dict) -> dict:
         t["seed"] = int(rng.integers(0, 10_000))
         t["amplitude"] = float(t["amplitude"] * rng.uniform(0.8, 1.1))
         t["center"] = [float(c + rng.uniform(-0.2, 0.2)) for c in t["center"]]
-    return {"seed": seed, "effects": effects, "trials": {k: trials[k] for k in ("excitation", "validation")}}
+        t["period_s"] = float(t["period_s"] * rng.uniform(0.7, 1.4))
+        t["harmonics"] = int(rng.integers(3, 7))
+    gain = float(rng.uniform(0.6, 1.6))
+    ctl = trials["control"]
+    for key in ("kp", "kd", "ki"):
+        ctl[key] = [float(x * gain) for x in ctl[key]]
+    return {"seed": seed, "effects": effects, "cycle_hz": float(rng.choice(RATES_HZ)),
+            "trials": {k: trials[k] for k in ("excitation", "validation", "control")}}
 
 
-def record(robot, path: Path, effects, trials_cfg: dict, seed: int) -> None:
+def record(robot, path: Path, effects, trials_cfg: dict, seed: int, cycle_hz: float | None = None) -> None:
     from hil_sim.direct import DirectDriveGroup
     from hil_sim.plant import Plant
     from js2io.session import run_trials
 
     plant = Plant(robot, seed=seed, effects=effects)
-    with DirectDriveGroup(robot, plant=plant, seed=seed) as group:
+    with DirectDriveGroup(robot, plant=plant, seed=seed, cycle_hz=cycle_hz) as group:
         res = run_trials(group, robot, ["excitation", "validation"], path, trials_config=trials_cfg, seed=seed)
     if res.aborted:
         raise RuntimeError(f"simulation aborted: {res.reason}")
@@ -114,27 +130,39 @@ def param_errors(true: dict, found: dict) -> dict:
     return out
 
 
-def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path) -> dict:
+def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bool = False,
+             rediagnose: bool = False, record_only: bool = False) -> dict | None:
+    """Simulate (unless its recording is kept) and diagnose case ``case``; cached in OUT/case_NNN.json, valid while
+    the case's draw is unchanged."""
     from diagnosis.run import diagnose
 
     res_path = out / f"case_{case['seed']:03d}.json"
-    if res_path.is_file():
-        return json.loads(res_path.read_text())
-    cfg = copy.deepcopy(base_cfg)
-    cfg.update(copy.deepcopy(case["trials"]))
-    rec = out / f"case_{case['seed']:03d}.mcap"
-    t0 = time.time()
-    record(robot, rec, case["effects"], cfg, seed=case["seed"])
+    if res_path.is_file() and not rediagnose:
+        row = json.loads(res_path.read_text())
+        if row.get("case") == json.loads(json.dumps(case)):
+            return row
+    rec = out / "runs" / f"case_{case['seed']:03d}.mcap"
+    rec.parent.mkdir(parents=True, exist_ok=True)
+    sim_s = None
+    if not rec.is_file():
+        cfg = copy.deepcopy(base_cfg)
+        cfg.update(copy.deepcopy(case["trials"]))
+        t0 = time.time()
+        record(robot, rec, case["effects"], cfg, seed=case["seed"], cycle_hz=case.get("cycle_hz"))
+        sim_s = round(time.time() - t0, 1)
+    if record_only:
+        return None
     t1 = time.time()
     res = diagnose(model, rec)
     t2 = time.time()
     named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
               "report_gain": f["holdout_gain"]} for f in res.findings()]
-    row = {"seed": case["seed"], "effects": case["effects"], "named": named,
-           "unexplained": [u["joint_index"] for u in res.unexplained()],
-           "sim_s": round(t1 - t0, 1), "diagnose_s": round(t2 - t1, 1)}
+    row = {"seed": case["seed"], "case": case, "effects": case["effects"], "cycle_hz": case.get("cycle_hz"),
+           "named": named, "unexplained": [u["joint_index"] for u in res.unexplained()],
+           "sim_s": sim_s, "diagnose_s": round(t2 - t1, 1)}
     res_path.write_text(json.dumps(row, default=float))
-    rec.unlink(missing_ok=True)
+    if not keep:
+        rec.unlink(missing_ok=True)
     return row
 
 
@@ -198,18 +226,24 @@ def print_report(s: dict, rows: list[dict]) -> None:
                 by.setdefault(p, []).append(v["rel_error"])
         for p, v in by.items():
             print(f"  {kind:<24} {p:<28} median error {np.median(v):.1%}, max {np.max(v):.1%} (n = {len(v)})")
-    secs = [r["sim_s"] + r["diagnose_s"] for r in rows if "sim_s" in r]
-    if secs:
-        print(f"time per case: simulate {np.median([r['sim_s'] for r in rows]):.0f} s, diagnose "
-              f"{np.median([r['diagnose_s'] for r in rows]):.0f} s (median)")
+    sim = [r["sim_s"] for r in rows if r.get("sim_s")]
+    diag = [r["diagnose_s"] for r in rows if r.get("diagnose_s")]
+    if diag:
+        print(f"time per case (median): diagnose {np.median(diag):.0f} s"
+              + (f", simulate {np.median(sim):.0f} s" if sim else ""))
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--cases", type=int, default=40, help="number of cases (default 40)")
+    ap.add_argument("--cases", type=int, default=48, help="number of cases (default 48)")
     ap.add_argument("--first", type=int, default=0, help="seed of the first case (default 0)")
     ap.add_argument("--out", type=Path, default=Path("runs/bench_diagnose"))
+    ap.add_argument("--keep-recordings", action="store_true", help="keep each case's recording in OUT/runs/")
+    ap.add_argument("--rediagnose", action="store_true",
+                    help="diagnose the kept recordings again (ignore the cached results; implies --keep-recordings)")
+    ap.add_argument("--record-only", action="store_true", help="simulate and keep the recordings, do not diagnose")
     a = ap.parse_args(argv)
+    keep = a.keep_recordings or a.rediagnose or a.record_only
     from identification.cli.identify import main as identify_main
     from js2io.session import _default_trials
     from js2io.trials import load_trials_config
@@ -236,11 +270,16 @@ def main(argv=None) -> int:
     n = robot.drives.n
     for seed in range(a.first, a.first + a.cases):
         case = draw_case(seed, n, base_cfg)
-        row = run_case(case, model, robot, base_cfg, a.out)
+        row = run_case(case, model, robot, base_cfg, a.out, keep, a.rediagnose, a.record_only)
+        truth = ", ".join(f"{e['kind']}@{e['joints'][0]}" for e in case["effects"]) or "clean"
+        if row is None:
+            print(f"case {seed:3d}: recorded ({truth}, {case['cycle_hz']:g} Hz)", flush=True)
+            continue
         rows.append(row)
-        truth = ", ".join(f"{e['kind']}@{e['joints'][0]}" for e in row["effects"]) or "clean"
         named = ", ".join(f"{f['kind']}@{f['joint']}" for f in row["named"]) or "nothing"
-        print(f"case {seed:3d}: concealed {truth:<50} named {named}", flush=True)
+        print(f"case {seed:3d}: {case['cycle_hz']:5g} Hz concealed {truth:<50} named {named}", flush=True)
+    if not rows:
+        return 0
     s = score(rows)
     print_report(s, rows)
     (a.out / "bench.json").write_text(json.dumps({"score": s, "rows": rows}, indent=1, default=float))

@@ -22,8 +22,11 @@ def _diagnose(effects: list[dict]):
 CASES = [
     # kind, joint, simulator parameters, check(found effect) -> bool
     ("stribeck", 1, {"velocity": 4.0}, lambda e: 2.5 < e["velocity"] < 6.0),
+    # the phase in hil_sim's convention (the ripple acts on the rotor; the drive supplies minus it), so that the
+    # found effect simulates back; the simulator's encoder zero is the rotor's
     ("cogging", 2, {"amplitude": 0.004, "periods_per_rev": 2},
-     lambda e: e["periods_per_rev"] == 2 and 0.002 < e["amplitude"] < 0.006),
+     lambda e: e["periods_per_rev"] == 2 and 0.002 < e["amplitude"] < 0.006
+     and abs(np.angle(np.exp(1j * e["phase"]))) < 0.3),
     ("payload_change", 5, {"mass": 0.3, "com": [0.05, 0.0, 0.0]},
      lambda e: abs(e["mass"] - 0.3) < 0.03 and abs(e["com"][0] - 0.05) < 0.01),
     pytest.param("thermal_drift", 0, {"heating": 5.0, "time_constant": 15.0, "friction_per_kelvin": 0.01},
