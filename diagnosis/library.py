@@ -13,7 +13,7 @@ coefficient of a present effect is positive.
 | kind | columns (motor i, joint j) | coefficient -> parameter |
 | --- | --- | --- |
 | friction_refit (reference, never named) | w_i, sgn(w_i) | the model's B, f_c again (the null of the friction terms) |
-| torque_offset (reference, never named) | 1 | a sensor zero (the null of asymmetric friction) |
+| torque_offset | 1 | a constant load torque on the motor (also the null of asymmetric friction) |
 | stribeck | sgn(w_i) exp(-(|w_i|/v_s)^delta) | f_s - f_c (N*m); velocity = v_s (rad/s motor), shape delta (0.5, 1, 2) |
 | cogging | sin(p theta_i), cos(p theta_i), in the torque band and unfiltered | amplitude, phase; periods_per_rev = p |
 | payload_change | K^T Y_link_j[m, mx, my, mz], any link j | mass (kg), com = (m c)/m (m, frame of link j) |
@@ -123,9 +123,10 @@ class FrictionRefit(Term):
 
 
 class TorqueOffset(Term):
-    """Reference (never named as a physical effect): a constant torque offset on motor j (a sensor zero that moved
-    since identification). An asymmetric friction must explain more than this (``extends``)."""
-    kind, reference = "torque_offset", True
+    """A constant torque on motor j the model does not have (a preload, a cable, a counterbalance's error, a torque
+    zero that moved since identification): hil_sim's ``torque_offset``. The simplest term, and the null an
+    asymmetric friction must beat (``extends``)."""
+    kind = "torque_offset"
 
     def columns(self, rd, j, h):
         col = np.zeros((len(rd.t), rd.n, 1))
@@ -133,8 +134,10 @@ class TorqueOffset(Term):
         return col
 
     def effect(self, rd, j, h, coef, std):
+        ok = abs(coef[0]) > 3 * std[0]
         return ({"kind": self.kind, "joints": [j], "offset": float(coef[0])},
-                f"motor {j + 1}'s torque is offset by {coef[0]:+.3g} N*m from the model's", True, "")
+                f"motor {j + 1} carries a constant {coef[0]:+.3g} N*m more than the model (both directions)", ok,
+                "" if ok else "offset not significant")
 
 
 STRIBECK_SHAPES = (2.0,)   # shapes 0.5 and 1 were tried: 0.5 named Stribeck on clean simulated recordings (it fits

@@ -112,7 +112,7 @@ def headline(d: dict) -> str:
                 f"{d['holdout_gain']:.0%} of the residual on the report rows, which the search never saw.")
     if d["unexplained"]:
         return ("Mismatch, but no named physics: the residual on " + ", ".join(u["joint"] for u in d["unexplained"])
-                + " has structure that only a refit of the model's own friction/offset explains (unexplained).")
+                + " has structure that only a refit of the model's own friction explains (unexplained).")
     return "No mismatch that any candidate term explains on held-out data: the model is complete as far as this " \
            "recording can tell."
 

@@ -104,7 +104,7 @@ class DiagnosisResult:
         }
 
     def unexplained(self) -> list[dict]:
-        """Structure no named term explains: reference terms (a refit of the model's own friction and offset) that
+        """Structure no named term explains: reference terms (a refit of the model's own friction) that
         passed every test, with where (joint, regime) and how much of that motor's select-rows residual they take."""
         out = []
         for s in self.search.references_:
@@ -113,7 +113,7 @@ class DiagnosisResult:
             out.append({"kind": "unexplained", "joint": self.rd.joints[j], "joint_index": j,
                         "regime": mot.get("worst_regime"), "fraction_of_residual": round(float(s.select_gain), 4),
                         "holdout_gain": float(s.holdout_gain),
-                        "what": "the model's friction / torque offset on this motor differ from the recording's "
+                        "what": "the model's friction on this motor differs from the recording's "
                                 "(a refit explains it; no named effect does better): " + s.fitted.summary})
         return out
 

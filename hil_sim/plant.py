@@ -100,6 +100,11 @@ class Plant:
                                source=robot.urdf_path, effects_source=effects_source)
         self.friction = Friction(truth.viscous, truth.coulomb, truth.static, effects)
 
+        self.load_offset = np.zeros(n)          # torque_offset: a constant load torque on each motor (N*m)
+        for e in effects:
+            if e.kind == "torque_offset":
+                self.load_offset[list(e.joints)] += e["offset"]
+        self.has_load_offset = bool(np.any(self.load_offset))
         cog = [e for e in effects if e.kind == "cogging"]
         self.cog_axes = np.array([j for e in cog for j in e.joints], dtype=int)
         self.cog_amp = np.array([e["amplitude"] for e in cog for _ in e.joints], dtype=float)
@@ -439,11 +444,14 @@ class Plant:
         if fr.has_thermal:
             self._refresh_levels()
         simple = self._simple
+        # a torque_offset is a constant load on the rotor: the links see the drive's torque less it (the drive's
+        # current, what the sensors report, is still tau)
+        tau_net = tau - self.load_offset if self.has_load_offset else tau
         for _ in range(steps):
             if simple and not self._rest_pending:
-                self._substep_sliding(h, tau)
+                self._substep_sliding(h, tau_net)
             else:
-                self._substep(h, tau)
+                self._substep(h, tau_net)
         self._t += duration
         if fr.has_thermal:
             # first-order winding temperature, exact for the held current: dT' = (heating I^2 - dT) / tau_th

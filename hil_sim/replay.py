@@ -177,6 +177,8 @@ def inverse_replay(plant: Plant, t, q_motor, dq_motor, ddq_motor) -> InverseRepl
         if plant.has_cogging:
             k = plant.cog_axes
             tau[k] -= plant.cog_amp * np.sin(plant.cog_periods * qm[k] + plant.cog_phase)
+        if plant.has_load_offset:
+            tau = tau + plant.load_offset                  # torque_offset: a constant load the drive carries
         out[s] = tau
         temps[s] = temp
     return InverseReplay(tau_motor=out, temperature_rise=temps, deflection=defl,
@@ -270,7 +272,7 @@ def load_effects_file(path, n: int, joints: list[str]) -> tuple[list[dict], list
     if not isinstance(items, list):
         raise ConfigError(path, "effects", "must be a list of effects")
     keep = [e for e in items if not (isinstance(e, dict) and e.get("kind") not in EFFECT_KINDS
-                                     and e.get("kind") in ("torque_offset", "coupling", "friction_refit"))]
+                                     and e.get("kind") in ("coupling", "friction_refit"))]
     notes = [f"{e['kind']} on {e.get('joints')}: not simulated by hil_sim, left out of the replay"
              for e in items if e not in keep]
     parse_effects(keep, n, source=path, joints=joints)          # refuse bad files here, naming the file

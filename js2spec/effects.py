@@ -114,6 +114,11 @@ EFFECT_KINDS: dict[str, Kind] = {k.name: k for k in (
         Param("damping", "N*m*s/rad", "nonneg", 0.0, "spring damping d", "joint side")),
         "two-mass joint: a spring-damper between the gear output K theta_m + offset and the link; link angle = "
         "gear angle + deflection, deflection at rest -tau_link/k"),
+    Kind("torque_offset", (
+        Param("offset", "N*m", "any", REQUIRED, "constant load torque on the rotor, which the drive supplies on top "
+                                                "of eq. 1", "motor side"),),
+        "a constant torque acting on the motor against the drive (a preload, a cable, a counterbalance's error, a "
+        "torque zero that moved): the measured torque is eq. 1's plus the offset, in both directions and at rest"),
     Kind("backlash", (
         Param("width", "rad", "pos", REQUIRED, "total play b", "joint side"),
         Param("stiffness", "N*m/rad", "pos", None, "contact stiffness (default: the joint's joint_elasticity "

@@ -36,6 +36,7 @@ CASES = [
                                          "the right joint, not named (docs/diagnosis.md)")),
     ("load_dependent_friction", 1, {"coefficient": 0.15}, lambda e: abs(e["coefficient"] - 0.15) < 0.03),
     ("asymmetric_friction", 0, {"negative_scale": 1.5}, lambda e: abs(e["negative_scale"] - 1.5) < 0.1),
+    ("torque_offset", 2, {"offset": 0.03}, lambda e: abs(e["offset"] - 0.03) < 0.006),
     pytest.param("joint_elasticity", 1, {"stiffness": 1500.0, "damping": 3.0}, lambda e: 500 < e["stiffness"] < 4000,
                  marks=pytest.mark.xfail(strict=True, reason="select gain 11 % < 12 % (report 18 %): too weak "
                                          "for the honest selection (docs/diagnosis.md)")),

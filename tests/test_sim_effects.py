@@ -205,3 +205,25 @@ def test_backlash_gives_a_dead_zone_on_reversal():
         travel[name] = gear0 - ref.q_joint(plant.q_motor)[0]
     assert travel["backlash"] == pytest.approx(b, rel=0.05)
     assert travel["elastic"] < 0.02 * b
+
+
+def test_torque_offset_is_a_constant_load_the_drive_carries():
+    """torque_offset: the same drive torque drives the arm as if it were `offset` smaller; what the drive feels at
+    constant speed is the plain arm's torque plus the offset, in both directions."""
+    robot = js2()
+    off = 0.04
+    eff = [{"kind": "torque_offset", "joints": [0], "offset": off}]
+    a = Plant(robot, effects=eff, seed=4)
+    b = Plant(robot, seed=4)
+    a.reset(POSE)
+    b.reset(POSE)
+    tau = np.array([0.6, 0.2, -0.1, 0.05, 0.02, 0.01])
+    for _ in range(200):
+        a.step(tau, 0.002)
+        b.step(tau - np.array([off, 0, 0, 0, 0, 0]), 0.002)
+    np.testing.assert_allclose(a.read_sensors().motor_position, b.read_sensors().motor_position, atol=1e-12)
+    assert np.any(a.read_sensors().motor_position != 0)
+    for speed in (3.0, -3.0):
+        plain = _friction_at_speed(robot, None, 0, speed)
+        shifted = _friction_at_speed(robot, eff, 0, speed)
+        assert shifted - plain == pytest.approx(off, rel=0.02)
