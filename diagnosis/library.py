@@ -14,8 +14,8 @@ coefficient of a present effect is positive.
 | --- | --- | --- |
 | friction_refit (reference, never named) | w_i, sgn(w_i) | the model's B, f_c again (the null of the friction terms) |
 | torque_offset | 1 | a constant load torque on the motor (also the null of asymmetric friction) |
-| stribeck | sgn(w_i) exp(-(|w_i|/v_s)^delta) | f_s - f_c (N*m); velocity = v_s (rad/s motor), shape delta (0.5, 1, 2) |
-| cogging | sin(p theta_i), cos(p theta_i), in the torque band and unfiltered | amplitude, phase; periods_per_rev = p |
+| stribeck | [w_i > 0] exp(-(|w_i|/v_s)^delta), -[w_i < 0] exp(...) | f_s - f_c (N*m) per direction (both > 0, within 2:1); velocity = v_s (rad/s motor), shape delta = 2 |
+| cogging | sin(p theta_i), cos(p theta_i) per direction of turning, in the torque band and unfiltered | amplitude, phase (both directions agree); periods_per_rev = p |
 | payload_change | K^T Y_link_j[m, mx, my, mz], any link j | mass (kg), com = (m c)/m (m, frame of link j) |
 | thermal_drift | H_tau(I_i^2) (B w_i + f_c sgn w_i), w_i, sgn w_i | friction_per_kelvin with heating 1 K/A^2; time_constant = tau |
 | load_dependent_friction | sgn(w_i) |(K^T tau_rigid)_i| | coefficient mu (-) |
@@ -159,22 +159,33 @@ class Stribeck(Term):
         return [(float(v), d) for v in np.geomspace(lo, 30 * lo, 13) for d in STRIBECK_SHAPES]
 
     def columns(self, rd, j, h):
+        """The hump exp(-(|w|/v_s)^delta), once turning forward and once (negated) turning backward: friction
+        opposes the motion in both directions, so both humps must be there (checked in :meth:`effect`, within
+        2:1 like :class:`AsymmetricFriction`); a residual locked to one part of the trajectory is not."""
         v, d = h
         w = _moving(rd, j)
-        col = np.zeros((len(w), rd.n, 1))
-        col[:, j, 0] = _sgn(w) * np.exp(-(np.abs(w) / v) ** d)
+        hump = np.exp(-(np.abs(w) / v) ** d)
+        col = np.zeros((len(w), rd.n, 2))
+        col[:, j, 0] = (w > 0) * hump
+        col[:, j, 1] = -(w < 0).astype(float) * hump
         return col
 
     def effect(self, rd, j, h, coef, std):
         v, d = h
         fc = float(rd.extra["model"].friction_coulomb[j])
         lowest = v <= self.grid(rd, j)[0][0] * 1.0001
-        ok = coef[0] > 3 * std[0] and not lowest
+        both = bool(np.all(coef > 3 * std))
+        ratio = float(coef[1] / coef[0]) if both else float("nan")
+        agree = both and 0.5 <= ratio <= 2.0
+        ok = agree and not lowest
         why = ("" if ok else "Stribeck velocity at the lowest speed tried: what it fits is the friction step at "
-               "reversals, not a resolved Stribeck curve" if lowest else "fitted low-speed excess is not positive")
+               "reversals, not a resolved Stribeck curve" if lowest else
+               "fitted low-speed excess is not positive/significant in both directions" if not both else
+               f"the low-speed excess differs {ratio:.2g}:1 between the directions: not a Stribeck curve")
+        excess = float(np.mean(coef))
         return ({"kind": self.kind, "joints": [j], "velocity": float(v), "shape": float(d)},
-                f"friction rises below ~{v:.2g} rad/s (motor): static friction {fc + coef[0]:.4g} N*m against "
-                f"Coulomb {fc:.4g} N*m", ok, why)
+                f"friction rises below ~{v:.2g} rad/s (motor): static friction {fc + excess:.4g} N*m against "
+                f"Coulomb {fc:.4g} N*m (forward {coef[0]:.3g}, backward {coef[1]:.3g} N*m above it)", ok, why)
 
 
 class Cogging(Term):
@@ -204,21 +215,35 @@ class Cogging(Term):
         return [p for p in range(1, top + 1) if p * span / (2 * np.pi) >= self.MIN_PERIODS]
 
     def columns(self, rd, j, h):
+        """sin, cos of p theta, once for the rows turning forward and once for those turning backward: a ripple
+        is a function of the angle alone, so both directions must find the same one (checked in :meth:`effect`);
+        a residual locked to the trajectory's timing, not to the angle, does not."""
         th = np.nan_to_num(rd.q_motor[:, j])
-        col = np.zeros((len(th), rd.n, 2))
-        col[:, j, 0] = np.sin(h * th)
-        col[:, j, 1] = np.cos(h * th)
+        fwd = (_moving(rd, j) >= 0).astype(float)
+        col = np.zeros((len(th), rd.n, 4))
+        s, c = np.sin(h * th), np.cos(h * th)
+        col[:, j, 0], col[:, j, 1] = s * fwd, c * fwd
+        col[:, j, 2], col[:, j, 3] = s * (1 - fwd), c * (1 - fwd)
         return col
 
+    AGREE = 0.5         # the two directions' ripples (phasors) may differ by at most this share of their mean
+
     def effect(self, rd, j, h, coef, std):
-        amp = float(np.hypot(coef[0], coef[1]))
+        z_fwd, z_bwd = complex(coef[0], coef[1]), complex(coef[2], coef[3])
+        z = (z_fwd + z_bwd) / 2
+        amp = float(abs(z))
         # the ripple acts on the rotor: the drive supplies minus it, so hil_sim's phase is the residual's + pi
-        phase = float(np.arctan2(-coef[1], -coef[0]))
-        amp_std = float(np.hypot(std[0], std[1]))
-        ok = amp > 4 * amp_std
+        phase = float(np.angle(-z))
+        amp_std = float(np.sqrt(np.sum(std ** 2)) / 2)
+        agree = abs(z_fwd - z_bwd) <= self.AGREE * amp
+        ok = amp > 4 * amp_std and agree
+        why = ("" if ok else "ripple amplitude not above its uncertainty" if amp <= 4 * amp_std else
+               f"the ripple found turning forward ({abs(z_fwd):.2g} N*m at {np.angle(z_fwd):+.2f} rad) is not the one "
+               f"found turning backward ({abs(z_bwd):.2g} N*m at {np.angle(z_bwd):+.2f} rad): not a function of the "
+               "angle")
         return ({"kind": self.kind, "joints": [j], "amplitude": amp, "periods_per_rev": int(h), "phase": phase},
-                f"torque ripple {amp:.3g} N*m, {int(h)} periods per motor revolution", ok,
-                "" if ok else "ripple amplitude not above its uncertainty")
+                f"torque ripple {amp:.3g} N*m, {int(h)} periods per motor revolution (the same in both directions)",
+                ok, why)
 
 
 class CoggingWide(Cogging):
@@ -299,10 +324,12 @@ class ThermalDrift(Term):
     margin = 0.25
 
     def grid(self, rd, j):
-        """Time constants from 3 s to 4x the recording's span, 12 per decade (a continuous time constant to 10 %)."""
+        """Time constants from 10 s to 4x the recording's span, 12 per decade (a continuous time constant to 10 %).
+        A winding's thermal lag is slower than the motion: a lag of a few seconds follows the load cycle itself (a
+        load-dependent friction, not a drift) — with 3 s on the grid a clean real KUKA recording got a drift named."""
         span = float(rd.t[-1] - rd.t[0])
-        top = max(4 * span, 3.5)
-        return [float(tc) for tc in np.geomspace(3.0, top, max(2, int(np.ceil(12 * np.log10(top / 3.0))) + 1))]
+        top = max(4 * span, 12.0)
+        return [float(tc) for tc in np.geomspace(10.0, top, max(2, int(np.ceil(12 * np.log10(top / 10.0))) + 1))]
 
     def columns(self, rd, j, h):
         i2 = np.nan_to_num(rd.motor_current[:, j]) ** 2
