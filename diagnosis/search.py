@@ -17,6 +17,11 @@ matrix (``Term.own_motor``: elasticity, backlash), select gain on that joint's o
 null below), adds its torque to the model and ranks again, until
 no candidate passes (at most ``max_terms`` terms) — a failing first-ranked candidate never hides a passing one.
 
+A second null the data give, for a term that ties the residual to another recorded signal (``Term.shifted_columns``:
+load-dependent friction and the load): its own column with that signal shifted in time must not do as well.
+Where two candidates read the same data as one physical thing (``Term.resolve``: one point mass near the last
+axes, on either of two links), the term says which to name.
+
 The null the data give: a term that contains a simpler one (``Term.extends``: e.g. a thermal drift contains a plain
 refit of the model's friction, which any recording of another day may need) must cut what the simpler one leaves on
 the select rows by its ``Term.margin`` more (a quarter; 4 % for a backlash over its spring); the simpler reference terms (``Term.reference``) are never named an effect
