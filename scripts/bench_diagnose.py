@@ -217,6 +217,20 @@ def print_report(s: dict, rows: list[dict]) -> None:
             print(f"| {r} | " + " | ".join(str(d[c]) if d[c] else "." for c in cols) + " |")
     print("false names (named where that kind was not concealed): "
           + (", ".join(f"{k} {v}" for k, v in s["false_names"].items() if v) or "none"))
+    for row in rows:                      # each false name with its report gain (a true one's for comparison)
+        true_keys = {(e["kind"], e["joints"][0]) for e in row["effects"]}
+        for f in row["named"]:
+            if (f["kind"], f["joint"]) not in true_keys:
+                print(f"  false name: case {row['seed']:3d} ({row.get('cycle_hz') or 500:g} Hz) {f['kind']} on joint "
+                      f"{f['joint']}, report gain {f['report_gain']:.2f}"
+                      + (" (clean case)" if not row["effects"] else ""))
+    gains = {}
+    for row in rows:
+        true_keys = {(e["kind"], e["joints"][0]) for e in row["effects"]}
+        for f in row["named"]:
+            if (f["kind"], f["joint"]) in true_keys:
+                gains.setdefault(f["kind"], []).append(f["report_gain"])
+    print("report gain of the right names: " + ", ".join(f"{k} {min(v):.2f}-{max(v):.2f}" for k, v in gains.items()))
     print(f"right effect and joint: {s['effects_found']}/{s['effects']} = {s['effect_rate']:.0%}; "
           f"clean cases named nothing: {s['clean_none']}/{s['clean']} = {s['clean_rate']:.0%}")
     for kind, errs in s["param_errors"].items():
@@ -231,6 +245,23 @@ def print_report(s: dict, rows: list[dict]) -> None:
     if diag:
         print(f"time per case (median): diagnose {np.median(diag):.0f} s"
               + (f", simulate {np.median(sim):.0f} s" if sim else ""))
+
+
+def print_thermal_sizes(rows: list[dict], out: Path) -> None:
+    """How much each concealed thermal drift changes friction at steady state, heating * alpha * mean(I^2) of the
+    kept recording's motor current: a drift of a few per cent is below what the residual can show."""
+    from js2spec.log import read_log
+
+    for row in rows:
+        rec = out / "runs" / f"case_{row['seed']:03d}.mcap"
+        for e in row["effects"]:
+            if e["kind"] != "thermal_drift" or not rec.is_file():
+                continue
+            j = e["joints"][0]
+            i2 = float(np.nanmean(np.asarray(read_log(rec).feedback.motor_current, float)[:, j] ** 2))
+            found = any(f["kind"] == "thermal_drift" and f["joint"] == j for f in row["named"])
+            print(f"  thermal_drift case {row['seed']:3d} joint {j}: mean I^2 {i2:.3g} A^2, steady friction change "
+                  f"{100 * e['heating'] * e['friction_per_kelvin'] * i2:.1f} % ({'found' if found else 'missed'})")
 
 
 def main(argv=None) -> int:
@@ -282,6 +313,7 @@ def main(argv=None) -> int:
         return 0
     s = score(rows)
     print_report(s, rows)
+    print_thermal_sizes(rows, a.out)
     (a.out / "bench.json").write_text(json.dumps({"score": s, "rows": rows}, indent=1, default=float))
     return 0
 
