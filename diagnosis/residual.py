@@ -172,24 +172,6 @@ def split_rows(log, t: np.ndarray, keep: np.ndarray, holdout_trial: str = "valid
     return fit, sel, hold, note + " (fit : select = 2 : 1, interleaved time blocks)"
 
 
-def _offsets(model: IdentifiedModel, n: int) -> np.ndarray:
-    """Constant torque offsets of the exported model: ``model.yaml`` ``torque_offset`` (those of the physically
-    consistent parameters the URDF holds, which the prediction uses); a model without that key: its base parameters
-    ``off_<k>``; else zeros. (The base values belong to the unconstrained fit: with the URDF's parameters they can be
-    N*m off — 2.7 N*m on a real KUKA shoulder.)"""
-    raw = model.raw.get("torque_offset")
-    if isinstance(raw, list) and len(raw) == n:
-        try:
-            return np.nan_to_num(np.asarray(raw, float))
-        except (TypeError, ValueError):
-            raise DiagnosisError(f"{model.path}: torque_offset must be a list of {n} numbers") from None
-    off = np.zeros(n)
-    for name, v in zip(model.base_names, model.base_values):
-        if name.startswith("off_") and name[4:].isdigit() and 1 <= int(name[4:]) <= n and np.isfinite(v):
-            off[int(name[4:]) - 1] = v
-    return off
-
-
 def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validation", fit_trials=None,
                   min_speed: float = 0.01, settings: FilterSettings | None = None,
                   report_fraction: float = 0.3) -> ResidualData:
@@ -215,7 +197,7 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
     pi = standard_vector(arm, motor_inertia=model.motor_inertia, viscous=model.friction_viscous,
                          coulomb=model.friction_coulomb)
     nl = 10 * n
-    off = _offsets(model, n)
+    off = model.torque_offset             # the exported model's (IdentifiedModel.torque_offset)
     if side == "joint":
         W[:, :, :nl] = np.matmul(K.T, W[:, :, :nl])    # the rigid-body part to the motor side (K^T Y)
 

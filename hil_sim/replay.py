@@ -76,12 +76,9 @@ def model_motor_side(model, drives) -> dict:
 
 
 def model_offsets(model) -> np.ndarray:
-    """Constant torque offsets of the model (base parameters ``off_<k>``), on the recording's torque side."""
-    off = np.zeros(model.n)
-    for name, v in zip(model.base_names, model.base_values):
-        if name.startswith("off_") and name[4:].isdigit() and 1 <= int(name[4:]) <= model.n and np.isfinite(v):
-            off[int(name[4:]) - 1] = v
-    return off
+    """Constant torque offsets of the exported model (``IdentifiedModel.torque_offset``: model.yaml's
+    ``torque_offset``, else the base ``off_<k>``), on the recording's torque side."""
+    return model.torque_offset
 
 
 def model_plant(model, drives, effects=None, effects_source=None) -> Plant:

@@ -45,6 +45,25 @@ class IdentifiedModel:
         return read_text(self.urdf_path, "identified URDF")
 
     @property
+    def torque_offset(self) -> np.ndarray:
+        """Constant torque offsets (N*m, on the model's torque side) of the exported model: ``torque_offset`` of
+        model.yaml (those of the physically consistent parameters the URDF holds); a model without that key: its
+        base parameters ``off_<k>``; else zeros. (The base values belong to the unconstrained fit: with the URDF's
+        parameters they can be N*m off — 2.7 N*m on a real KUKA shoulder.)"""
+        n = self.n
+        raw = self.raw.get("torque_offset")
+        if isinstance(raw, list) and len(raw) == n:
+            try:
+                return np.nan_to_num(np.asarray([np.nan if v is None else v for v in raw], float))
+            except (TypeError, ValueError):
+                raise ConfigError(self.path, "torque_offset", f"must be a list of {n} numbers") from None
+        off = np.zeros(n)
+        for name, v in zip(self.base_names, self.base_values):
+            if name.startswith("off_") and name[4:].isdigit() and 1 <= int(name[4:]) <= n and np.isfinite(v):
+                off[int(name[4:]) - 1] = v
+        return off
+
+    @property
     def unmodelled(self) -> list[dict]:
         """Effects added by diagnosis (``unmodelled:`` list), empty for a plain identified model."""
         return list(self.raw.get("unmodelled") or [])

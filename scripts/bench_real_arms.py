@@ -69,7 +69,7 @@ def bench_tx40(data: Path, work: Path) -> dict:
 def bench_kuka(data: Path, work: Path) -> dict:
     from identification.examples.real_arms import import_kuka
     from identification.pipeline import IdentifyOptions, identify
-    from identification.reference import reference_prediction
+    from identification.reference import published_friction, reference_prediction
 
     logs = import_kuka(data, work)
     ident = identify([logs[0]], IdentifyOptions(validate_paths=(str(logs[2]),)))

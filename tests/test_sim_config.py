@@ -81,7 +81,8 @@ def test_every_documented_effect_builds_with_its_required_parameters():
                 "payload_change": {"mass": 0.2}, "thermal_drift": {"heating": 10.0, "time_constant": 60.0,
                                                                    "friction_per_kelvin": 0.005},
                 "load_dependent_friction": {"coefficient": 0.05}, "asymmetric_friction": {"negative_scale": 1.2},
-                "joint_elasticity": {"stiffness": 3000.0}, "backlash": {"width": 0.002, "stiffness": 3000.0}}
+                "joint_elasticity": {"stiffness": 3000.0}, "backlash": {"width": 0.002, "stiffness": 3000.0},
+                "torque_offset": {"offset": 0.02}}
     assert set(required) == set(EFFECT_PARAMS)
     for kind, params in required.items():
         plant = Plant(robot, effects=[{"kind": kind, "joints": [1], **params}])
