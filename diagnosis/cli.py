@@ -19,8 +19,10 @@ what it does:
      motor inertias and offsets), filtered as the model was identified (model.yaml `filters`, default 50 Hz
      velocity, 7 Hz acceleration and torque), every cut-off kept below 0.4 x the sample rate; joint-side torques
      (torque sensors) are carried to the motor side with K^T;
-  2. splits the recording in three: REPORT = the 'validation' trial (else, or when it is the only trial, the last
-     30 %% of the recording); the rest ('excitation' when present) in interleaved time blocks, 2/3 FIT, 1/3 SELECT;
+  2. splits the recording in three: FIT = the trials other than 'validation' ('excitation' when present); SELECT
+     and REPORT = 1/3 and 2/3 of the 'validation' trial's interleaved time blocks (a second trajectory). Without a
+     'validation' trial (or when it is the only one): REPORT = the last 30 %% of the recording, the rest in
+     interleaved time blocks, 2/3 FIT, 1/3 SELECT;
   3. fits every candidate term (named effects: %s; each on every joint/link) on FIT, ranks them on SELECT and
      walks down the ranking to the first that cuts the SELECT residual of its motors by --min-gain and beats the
      null of a plain refit of the model's own friction; accepts it, ranks again, until none passes (at most

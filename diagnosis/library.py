@@ -13,6 +13,7 @@ coefficient of a present effect is positive.
 | kind | columns (motor i, joint j) | coefficient -> parameter |
 | --- | --- | --- |
 | friction_refit (reference, never named) | w_i, sgn(w_i) | the model's B, f_c again (the null of the friction terms) |
+| breakaway_transient (reference, never named) | [abs(w_i) < 2 w_min] sgn(w_next), + friction_refit | the stiction step at reversals, smeared by the torque filter (the null of stribeck) |
 | torque_offset | 1 | a constant load torque on the motor (also the null of asymmetric friction) |
 | stribeck | [w_i > 0] exp(-(|w_i|/v_s)^delta), -[w_i < 0] exp(...) | f_s - f_c (N*m) per direction (both > 0, within 2:1); velocity = v_s (rad/s motor), shape delta = 2 |
 | cogging | sin(p theta_i), cos(p theta_i) per direction of turning, in the torque band and unfiltered | amplitude, phase (both directions agree); periods_per_rev = p |
@@ -122,6 +123,35 @@ class FrictionRefit(Term):
                 True, "")
 
 
+class BreakawayTransient(Term):
+    """Reference (never named): what stiction leaves at every reversal — the axis stops, the drive's torque climbs
+    to the breakaway level f_s the model (eq. 1: B w + f_c sgn w) does not predict, the axis starts the other way,
+    and the torque filter smears that step into the first moving samples. Column: [|w| < 2 w_min] sgn(w_next)
+    (w_min the motor's --min-speed threshold, w_next the direction the axis breaks away to), filtered like the
+    torque. Plus the plain refit it contains. A Stribeck hump must explain more than this (``extends``): a hump
+    that only follows the filtered breakaway step is the stiction any arm has, not a friction curve over speed."""
+    kind, reference = "breakaway_transient", True
+    extends = ("friction_refit",)
+
+    def columns(self, rd, j, h):
+        w = _moving(rd, j)
+        lo = 2.0 * float(rd.min_speed_motor[j]) if rd.min_speed_motor is not None else 2.0
+        slow = np.abs(w) < lo
+        # the direction of the next fast sample (where it breaks away to): fill backwards from each moving sample
+        idx = np.where(~slow, np.arange(len(w)), len(w))
+        nxt = np.minimum.accumulate(idx[::-1])[::-1]
+        sgn_next = np.where(nxt < len(w), np.sign(w[np.minimum(nxt, len(w) - 1)]), 0.0)
+        col = np.zeros((len(w), rd.n, 3))
+        col[:, j, 0] = slow * sgn_next
+        col[:, j, 1:] = FrictionRefit().columns(rd, j, None)[:, j, :]
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        return ({"kind": self.kind, "joints": [j], "breakaway_excess": float(coef[0])},
+                f"motor {j + 1} carries {coef[0]:+.3g} N*m more than the model near rest before it breaks away "
+                "(stiction the model's eq. 1 does not predict, smeared by the torque filter)", True, "")
+
+
 class TorqueOffset(Term):
     """A constant torque on motor j the model does not have (a preload, a cable, a counterbalance's error, a torque
     zero that moved since identification): hil_sim's ``torque_offset``. The simplest term, and the null an
@@ -150,7 +180,7 @@ STRIBECK_SHAPES = (2.0,)   # shapes 0.5 and 1 were tried: 0.5 named Stribeck on 
 class Stribeck(Term):
     """Friction rising below v_s: f_c + (f_s - f_c) exp(-(|w|/v_s)^delta) (hil_sim's form); v_s on a grid (fit rows),
     delta = 2 (see STRIBECK_SHAPES), f_s - f_c by least squares."""
-    kind, hyper_name, extends = "stribeck", "(velocity, shape)", ("friction_refit",)
+    kind, hyper_name, extends = "stribeck", "(velocity, shape)", ("friction_refit", "breakaway_transient")
 
     def grid(self, rd, j):
         """v_s from 2x the motor's --min-speed threshold to 60x; a best fit at the lowest is refused (what it fits is
@@ -627,8 +657,8 @@ class Backlash(_Compliance):
                 "" if ok else f"simulated play does not match the residual (scale {coef[0]:.2f})")
 
 
-LIBRARY: tuple[Term, ...] = (FrictionRefit(), TorqueOffset(), Stribeck(), Cogging(), CoggingWide(), PayloadChange(),
-                             ThermalDrift(),
+LIBRARY: tuple[Term, ...] = (FrictionRefit(), BreakawayTransient(), TorqueOffset(), Stribeck(), Cogging(), CoggingWide(),
+                             PayloadChange(), ThermalDrift(),
                              LoadDependentFriction(), AsymmetricFriction(), JointElasticity(), Backlash())
 KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if not t.reference))   # the named effects (hil_sim's kinds)
 REFERENCE_KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if t.reference))

@@ -138,11 +138,15 @@ def split_rows(log, t: np.ndarray, keep: np.ndarray, holdout_trial: str = "valid
                report_fraction: float = 0.3) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """Fit, select and report rows (see the module docstring).
 
-    * report: the ``holdout_trial`` (default ``validation``) when the log has it and other usable rows remain;
-      otherwise (no labels, or a recording whose only trial is ``validation``) the last ``report_fraction`` of the
-      recording's usable time.
-    * fit + select: ``fit_trials`` (default ``excitation`` when present, else every usable row outside the report),
-      split by :func:`interleave` (2/3 fit, 1/3 select, interleaved time blocks).
+    * With a ``holdout_trial`` (default ``validation``) beside other usable rows — a second trajectory: FIT is the
+      other trials (``fit_trials``, default ``excitation`` when present, else every usable row outside it); the
+      holdout trial is cut by :func:`interleave` into REPORT (2/3) and SELECT (1/3) time blocks. So a term is
+      accepted only if it holds on a trajectory it was not fitted on (a term locked to the excitation's timing —
+      a repeated excitation puts the same motion in every block — no longer passes SELECT), and the report rows
+      are that same second trajectory, never seen by the search.
+    * Otherwise (no labels, or a recording whose only trial is ``validation``): REPORT is the last
+      ``report_fraction`` of the recording's usable time; FIT and SELECT the rest, by :func:`interleave` (2/3 fit,
+      1/3 select).
     """
     trials = log.trials()
     hold = _trial_rows(log, t, holdout_trial) & keep if holdout_trial in trials else np.zeros(len(t), bool)
@@ -157,17 +161,18 @@ def split_rows(log, t: np.ndarray, keep: np.ndarray, holdout_trial: str = "valid
         else:
             pool = ~hold
             names = ", ".join(x for x in trials if x != holdout_trial) or "the rest of the recording"
-        pool &= keep & ~hold
-        note = f"fit and select on {names}; report: the '{holdout_trial}' trial"
-    else:
-        tk = t[keep]
-        cut = tk[0] + (1 - report_fraction) * (tk[-1] - tk[0]) if len(tk) else 0.0
-        hold = keep & (t >= cut)
-        pool = keep & ~hold
-        why = (f"the '{holdout_trial}' trial is the whole recording" if holdout_trial in trials
-               else f"no '{holdout_trial}' trial")
-        note = (f"{why}: time split, fit and select on the first {1 - report_fraction:.0%} of the recording, "
-                f"report: the last {report_fraction:.0%}")
+        fit = pool & keep & ~hold
+        report, sel = interleave(hold, t)
+        return fit, sel, report, (f"fit on {names}; select and report on the '{holdout_trial}' trial (select : report "
+                                  "= 1 : 2, interleaved time blocks)")
+    tk = t[keep]
+    cut = tk[0] + (1 - report_fraction) * (tk[-1] - tk[0]) if len(tk) else 0.0
+    hold = keep & (t >= cut)
+    pool = keep & ~hold
+    why = (f"the '{holdout_trial}' trial is the whole recording" if holdout_trial in trials
+           else f"no '{holdout_trial}' trial")
+    note = (f"{why}: time split, fit and select on the first {1 - report_fraction:.0%} of the recording, "
+            f"report: the last {report_fraction:.0%}")
     fit, sel = interleave(pool, t)
     return fit, sel, hold, note + " (fit : select = 2 : 1, interleaved time blocks)"
 

@@ -131,6 +131,37 @@ def param_errors(true: dict, found: dict) -> dict:
     return out
 
 
+MIN_VISIBLE = 0.12   # the diagnosis' own acceptance floor (MismatchSearch.min_gain): gain on the term's motors
+
+
+def visibility(rec: Path, model: Path, effects: list[dict], out: Path) -> list[float]:
+    """How much of the residual each concealed effect makes, on its own: the recording replayed through the model
+    alone and through the model plus that one effect at its true parameters (``hil_sim.replay``, inverse: the
+    recorded motion, the simulator's own effect code); 1 - RMS_with^2 / RMS_model^2 of the torque-band residual on
+    the effect's motor (a payload: the motor it changes most). Below MIN_VISIBLE the exact effect removes less of
+    its motor's residual than the diagnosis requires of any term: no method with that floor can name it. Negative:
+    the exact effect does not reproduce the recording sample by sample (a backlash's impacts on a joint without
+    gravity: the link's place in the gap is chaotic), which says nothing about whether it shows."""
+    import yaml
+
+    from hil_sim.replay import replay_recording
+
+    vis = []
+    for i, e in enumerate(effects):
+        path = out / f"truth_{rec.stem}_{i}.yaml"
+        path.write_text(yaml.safe_dump({"effects": [e]}))
+        rep = replay_recording(rec, model, path, forward=False)
+        path.unlink(missing_ok=True)
+        g = 1.0 - (rep.rms("effects") / rep.rms("model")) ** 2
+        vis.append(float(np.nanmax(g) if e["kind"] == "payload_change" else g[e["joints"][0]]))
+    return vis
+
+
+def visible(v: float | None) -> bool:
+    """Counted as visible unless the exact effect changes its motor's residual by less than MIN_VISIBLE."""
+    return v is None or abs(v) >= MIN_VISIBLE
+
+
 def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bool = False,
              rediagnose: bool = False, record_only: bool = False) -> dict | None:
     """Simulate (unless its recording is kept) and diagnose case ``case``; cached in OUT/case_NNN.json, valid while
@@ -140,7 +171,11 @@ def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bo
     res_path = out / f"case_{case['seed']:03d}.json"
     if res_path.is_file() and not rediagnose:
         row = json.loads(res_path.read_text())
+        rec = out / "runs" / f"case_{case['seed']:03d}.mcap"
         if row.get("case") == json.loads(json.dumps(case)):
+            if "visibility" not in row and rec.is_file():          # a result from before the column: add it
+                row["visibility"] = visibility(rec, model, case["effects"], out)
+                res_path.write_text(json.dumps(row, default=float))
             return row
     rec = out / "runs" / f"case_{case['seed']:03d}.mcap"
     rec.parent.mkdir(parents=True, exist_ok=True)
@@ -153,13 +188,14 @@ def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bo
         sim_s = round(time.time() - t0, 1)
     if record_only:
         return None
+    vis = visibility(rec, model, case["effects"], out)
     t1 = time.time()
     res = diagnose(model, rec)
     t2 = time.time()
     named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
               "report_gain": f["holdout_gain"]} for f in res.findings()]
     row = {"seed": case["seed"], "case": case, "effects": case["effects"], "cycle_hz": case.get("cycle_hz"),
-           "named": named, "unexplained": [u["joint_index"] for u in res.unexplained()],
+           "named": named, "unexplained": [u["joint_index"] for u in res.unexplained()], "visibility": vis,
            "sim_s": sim_s, "diagnose_s": round(t2 - t1, 1)}
     res_path.write_text(json.dumps(row, default=float))
     if not keep:
@@ -173,6 +209,8 @@ def score(rows: list[dict]) -> dict:
     conf = {r: {c: 0 for c in cols} for r in labels}
     false_names = {k: 0 for k in NAMED}
     hits = total = clean_ok = clean = 0
+    vis_hits = vis_total = 0
+    hidden = []                          # (case, kind, joint, visibility, found) of effects below MIN_VISIBLE
     errors = {k: [] for k in KINDS}
     for row in rows:
         named = {(f["kind"], f["joint"]): f for f in row["named"]}
@@ -185,11 +223,17 @@ def score(rows: list[dict]) -> dict:
                 conf["none"][f["kind"]] += 1
             continue
         true_keys = set()
-        for e in row["effects"]:
+        vis = row.get("visibility") or [None] * len(row["effects"])
+        for e, v in zip(row["effects"], vis):
             j = e["joints"][0]
             true_keys.add((e["kind"], j))
             total += 1
             f = named.get((e["kind"], j))
+            if visible(v):
+                vis_total += 1
+                vis_hits += f is not None
+            else:
+                hidden.append((row["seed"], e["kind"], j, v, f is not None))
             if f is not None:
                 hits += 1
                 conf[e["kind"]][e["kind"]] += 1
@@ -201,7 +245,10 @@ def score(rows: list[dict]) -> dict:
             if key not in true_keys:
                 false_names[f["kind"]] += 1
     return {"confusion": conf, "false_names": false_names, "effects_found": hits, "effects": total,
-            "effect_rate": hits / total if total else float("nan"), "clean_none": clean_ok, "clean": clean,
+            "effect_rate": hits / total if total else float("nan"),
+            "visible_found": vis_hits, "visible": vis_total,
+            "visible_rate": vis_hits / vis_total if vis_total else float("nan"), "below_floor": hidden,
+            "clean_none": clean_ok, "clean": clean,
             "clean_rate": clean_ok / clean if clean else float("nan"), "param_errors": errors}
 
 
@@ -234,6 +281,11 @@ def print_report(s: dict, rows: list[dict]) -> None:
     print("report gain of the right names: " + ", ".join(f"{k} {min(v):.2f}-{max(v):.2f}" for k, v in gains.items()))
     print(f"right effect and joint: {s['effects_found']}/{s['effects']} = {s['effect_rate']:.0%}; "
           f"clean cases named nothing: {s['clean_none']}/{s['clean']} = {s['clean_rate']:.0%}")
+    print(f"right effect and joint, effects the residual shows (exact effect removes >= {MIN_VISIBLE:.0%} of its "
+          f"motor's residual): {s['visible_found']}/{s['visible']} = {s['visible_rate']:.0%}")
+    for seed, kind, j, v, found in s["below_floor"]:
+        print(f"  below the floor: case {seed:3d} {kind} on joint {j}: the exact effect removes {v:.1%} "
+              f"({'named anyway' if found else 'not named'})")
     for kind, errs in s["param_errors"].items():
         by = {}
         for e in errs:

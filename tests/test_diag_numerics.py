@@ -80,3 +80,18 @@ def test_link_response_stays_bounded_through_a_tiny_inertia():
     assert np.all(np.isfinite(out))
     assert np.max(np.abs(out)) < 20 * np.max(np.abs(calm))
     assert np.max(np.abs(out[600:])) < 3 * np.max(np.abs(calm[600:]))
+
+
+def test_breakaway_transient_marks_the_slow_samples_with_the_direction_the_axis_breaks_away_to():
+    """The null of Stribeck: near rest (|w| < 2 w_min) the column carries the sign of the motion that follows (the
+    stiction step the drive climbs before the axis starts that way); elsewhere 0; plus the friction refit."""
+    from diagnosis.library import BreakawayTransient
+
+    w = np.array([5.0, 3.0, 1.0, 0.2, -0.1, -0.5, -3.0, -6.0, -1.5, 0.0, 0.3, 4.0])
+    rd = SimpleNamespace(n=2, dq_motor=np.stack([w, np.zeros_like(w)], axis=1), min_speed_motor=np.array([1.0, 1.0]))
+    col = BreakawayTransient().columns(rd, 0, None)
+    assert col.shape == (len(w), 2, 3)
+    expect = np.array([0, 0, -1, -1, -1, -1, 0, 0, 1, 1, 1, 0], float)   # slow samples take the next fast one's sign
+    assert np.array_equal(col[:, 0, 0], expect)
+    assert np.array_equal(col[:, 0, 1], w) and np.array_equal(col[:, 0, 2], np.sign(w))
+    assert not col[:, 1].any()                                            # only its own motor
