@@ -43,3 +43,23 @@ def test_clean_recording_gets_no_coupling():
     tried = [s for s in res.search.rankings_[0] if s.fitted.kind == "coupling"]
     assert tried                                              # the pairs were tried ...
     assert max(s.select_gain for s in tried) < res.search.min_gain   # ... and none explains the residual
+
+
+def test_a_coupling_into_the_hand_joint_is_below_the_noise():
+    """Why j6 from j5 is not in the named cases (docs/diagnosis.md): at c = 0.1 its column changes every motor's
+    torque by under a tenth of the clean recording's residual (rms, fit rows, torque band), while j5 from j4 at
+    c = 0.08 stands above motor 4's residual."""
+    from diagnosis.library import Coupling
+
+    rd = _diagnose([]).rd
+    m = rd.mask & rd.fit_rows[:, None]
+    res = np.nan_to_num(rd.residual)
+
+    def rms(x):
+        return np.array([np.sqrt(np.mean(x[m[:, k], k] ** 2)) for k in range(rd.n)])
+
+    noise = rms(res)
+    hand = rms(0.1 * Coupling().columns_low(rd, 5, 4)[:, :, 0])
+    assert np.all(hand < 0.1 * noise), hand / noise
+    wrist = rms(0.08 * Coupling().columns_low(rd, 4, 3)[:, :, 0])
+    assert wrist[3] > noise[3], wrist / noise
