@@ -23,6 +23,7 @@ coefficient of a present effect is positive.
 | asymmetric_friction | [w_i > 0], -[w_i < 0] | f_c+ - f_c, f_c- - f_c -> negative_scale |
 | joint_elasticity | -K^T (d tau/d q_j tau_j + M e_j d2 tau_j/dt2) (the link lags by tau_j/k) | 1/k (rad/(N*m)) -> stiffness k |
 | backlash | K^T e_j (tau_s - tau_r): the link simulated behind the measured gear motion on a spring with a dead zone of width b | width b, contact stiffness k, damping d (grid) |
+| coupling | K^T (e_i tau_j + d tau/d q_j q_i + d tau/d q_d_j q_d_i + M e_j q_dd_i), i on a grid (neighbours, K-coupled) | coefficient c (rad/rad), from_joint = i |
 
 w = motor speed, theta = motor angle, tau_rigid = M(q) q_dd + h + g of the model (joint side), H_tau a first-order
 low-pass with time constant tau (the winding's thermal lag).
@@ -657,8 +658,88 @@ class Backlash(_Compliance):
                 "" if ok else f"simulated play does not match the residual (scale {coef[0]:.2f})")
 
 
+# --- gear matrix error --------------------------------------------------------------------------------------------
+def _rnea_dv(rd: ResidualData, j: int) -> np.ndarray:
+    """d tau_rigid / d q_dot_j (joint side, (N, n)): pinocchio's analytic RNEA derivatives, one pass over the samples
+    (it also fills :func:`_rnea_dq`'s cache, the same call gives both), cached per recording."""
+    D = rd.extra.get("dtau_dv")
+    if D is None:
+        arm = rd.arm
+        model, data = arm.model, arm.model.createData()
+        K = rd.K
+        q = np.nan_to_num(rd.q_joint)
+        dq = np.nan_to_num(rd.dq_motor) @ K.T
+        ddq = np.nan_to_num(rd.ddq_motor) @ K.T
+        iv = arm.idx_v
+        Dq = np.zeros((len(q), rd.n, rd.n))
+        D = np.zeros((len(q), rd.n, rd.n))
+        qp, vp, ap = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
+        for s in range(len(q)):
+            qp[iv], vp[iv], ap[iv] = q[s], dq[s], ddq[s]
+            dq_s, dv_s, _ = pin.computeRNEADerivatives(model, data, qp, vp, ap)
+            Dq[s] = dq_s[np.ix_(iv, iv)]
+            D[s] = dv_s[np.ix_(iv, iv)]
+        rd.extra["dtau_dv"] = D
+        rd.extra.setdefault("dtau_dq", Dq)
+    return D[:, :, j]
+
+
+class Coupling(Term):
+    """A gear matrix error (hil_sim's ``coupling``): the arm's joint-from-motor matrix is K_true = (I + c e_j e_i^T) K,
+    joint j turning c rad more per rad of joint i (hyper-parameter i, ``from_joint``) than the model's K says. To first
+    order in c, with q = K theta_m + offset what the model computes from the encoders, the arm's joint j sits at
+    q_j + c (q_i - offset_i) and the motors carry K_true^T tau instead of K^T tau, so the residual is c times::
+
+        K^T [ e_i tau_j + d tau/d q_j (q_i - offset_i) + d tau/d q_dot_j q_dot_i + M e_j q_ddot_i ]
+
+    (tau = the model's rigid-body torque, joint side; pinocchio's RNEA derivatives and CRBA, :func:`_rnea_dq`,
+    :func:`_rnea_dv`, :func:`_mass_column`): the first part is joint j's torque reaching motor i's gear, the rest the
+    rigid-body torque at joint j's true angle, velocity and acceleration. One column, coefficient c (signed).
+
+    Pairs tried (``grid``): joint j driven from each neighbour i = j - 1, j + 1 (a parallelogram couples the upper arm
+    joints, a wrist's bevel gears its neighbours) and from every joint K already couples with j (a differential
+    wrist: a shared motor). Motors fitted and scored (``motors``): those driving j or any of its candidates."""
+    kind, hyper_name = "coupling", "from_joint"
+    MAX_COEFFICIENT = 0.5      # |c| above this is not a gear error but a wrong transmission model
+
+    def grid(self, rd, j):
+        K = np.abs(np.asarray(rd.K, float))
+        shared = (K @ K.T)[j] > 0                     # joints sharing a motor with j
+        return [i for i in range(rd.n) if i != j and (abs(i - j) == 1 or shared[i])]
+
+    def motors(self, rd, j):
+        K = np.abs(np.asarray(rd.K, float))
+        joints = [j] + self.grid(rd, j)
+        return np.flatnonzero(K[joints].sum(axis=0) > 0)
+
+    def columns(self, rd, j, h):
+        i = int(h)
+        K = np.asarray(rd.K, float)
+        q_gear = np.nan_to_num(rd.q_motor) @ K.T            # q - offset: what K makes of the encoders
+        dq = np.nan_to_num(rd.dq_motor) @ K.T
+        ddq = np.nan_to_num(rd.ddq_motor) @ K.T
+        joint_side = (_rnea_dq(rd, j) * q_gear[:, i:i + 1] + _rnea_dv(rd, j) * dq[:, i:i + 1]
+                      + _mass_column(rd, j) * ddq[:, i:i + 1])
+        joint_side[:, i] += np.nan_to_num(rd.tau_rigid_joint[:, j])
+        col = np.zeros((len(rd.t), rd.n, 1))
+        col[:, :, 0] = joint_side @ K                       # motor side: K^T x, row-wise
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        i, c = int(h), float(coef[0])
+        significant = abs(c) > 3 * std[0]
+        ok = significant and abs(c) < self.MAX_COEFFICIENT
+        why = ("" if ok else "coupling not significant" if not significant else
+               f"coefficient {c:+.2f} is not a gear error (|c| >= {self.MAX_COEFFICIENT}): the transmission model "
+               "itself is wrong")
+        return ({"kind": self.kind, "joints": [j], "from_joint": i, "coefficient": c},
+                f"joint {rd.joints[j]} turns {c:+.3g} rad per rad of joint {rd.joints[i]} more than the model's gear "
+                f"matrix K says (motor torques carry {c:+.3g} x {rd.joints[j]}'s torque on {rd.joints[i]}'s gear)",
+                ok, why)
+
+
 LIBRARY: tuple[Term, ...] = (FrictionRefit(), BreakawayTransient(), TorqueOffset(), Stribeck(), Cogging(), CoggingWide(),
                              PayloadChange(), ThermalDrift(),
-                             LoadDependentFriction(), AsymmetricFriction(), JointElasticity(), Backlash())
+                             LoadDependentFriction(), AsymmetricFriction(), JointElasticity(), Backlash(), Coupling())
 KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if not t.reference))   # the named effects (hil_sim's kinds)
 REFERENCE_KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if t.reference))

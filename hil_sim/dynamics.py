@@ -49,9 +49,11 @@ class ArmDynamics:
     """
 
     def __init__(self, urdf_text: str, drives, motor_inertia, elastic_joints=(), payloads=(), source=None,
-                 effects_source=None):
+                 effects_source=None, gear_ratio_matrix=None):
         """``payloads``: ``(index in the effects list, payload_change Effect)`` pairs; errors in them name
-        ``effects_source`` (the sim_truth file) and ``effects[index].mass``."""
+        ``effects_source`` (the sim_truth file) and ``effects[index].mass``. ``gear_ratio_matrix``: the arm's true
+        joint-from-motor matrix when it differs from ``drives.yaml``'s K (a ``coupling`` effect); every map
+        between motors and links here (angles ``q = K theta_m``, torques ``K^T tau``, the mass matrix) uses it."""
         model = build_model(urdf_text, source)
         n = drives.n
         names = list(drives.joints)
@@ -84,7 +86,7 @@ class ArmDynamics:
         self.n = n
         self.perm = P
         self.joint_names = names
-        K = np.asarray(drives.gear_ratio_matrix, dtype=float)
+        K = np.asarray(drives.gear_ratio_matrix if gear_ratio_matrix is None else gear_ratio_matrix, dtype=float)
         self.K_drive = K
         self.Kp = P @ K                                    # q_pin = Kp theta_m + off_p
         self.Kp_inv = np.linalg.inv(self.Kp)

@@ -11,7 +11,8 @@ which the diagnosis uses too; this module is the simulator's view of it. Config 
 
 The physics of each kind is implemented in :mod:`hil_sim.friction` (stribeck, asymmetric_friction,
 load_dependent_friction, thermal_drift), :mod:`hil_sim.dynamics` (payload_change, joint_elasticity, backlash) and
-:mod:`hil_sim.plant` (cogging, the thermal state, the spring forces). ``js2spec.effects.markdown_table()`` prints the
+:mod:`hil_sim.plant` (cogging, the thermal state, the spring forces, coupling: the true gear matrix that
+:class:`hil_sim.dynamics.ArmDynamics` then uses). ``js2spec.effects.markdown_table()`` prints the
 table of kinds, parameters (unit) and physics.
 
 Unknown kinds or parameters, missing required parameters, bad values and duplicate (kind, joint) pairs raise

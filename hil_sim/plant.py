@@ -27,7 +27,9 @@ axes carry the friction sign of their velocity for the whole step; an axis whose
 step stops there (velocity set to 0) and is a candidate at the next step.
 
 Reported joint angles (``q_joint``) are the link angles; with elastic joints they differ from the gear output
-``K theta_m + offset`` by the deflection. The encoders see the motors only.
+``K theta_m + offset`` by the deflection. The encoders see the motors only. With a ``coupling`` effect the arm's
+gear matrix is ``K_true`` (:meth:`Plant._true_gear_matrix`), used for all the physics; ``drives.yaml``'s K stays
+what the drives and the identified model use.
 """
 from __future__ import annotations
 
@@ -95,9 +97,11 @@ class Plant:
         self.spring_d = np.array([elastic[j]["d"] or 0.0 for j in self.elastic_joints], dtype=float)
         self.spring_half = np.array([elastic[j]["width"] / 2 for j in self.elastic_joints], dtype=float)
 
+        self.gear_ratio_matrix = self._true_gear_matrix(drives, effects, effects_source)
         self.dyn = ArmDynamics(robot.urdf_text, drives, truth.motor_inertia, self.elastic_joints,
                                [(i, e) for i, e in enumerate(effects) if e.kind == "payload_change"],
-                               source=robot.urdf_path, effects_source=effects_source)
+                               source=robot.urdf_path, effects_source=effects_source,
+                               gear_ratio_matrix=self.gear_ratio_matrix)
         self.friction = Friction(truth.viscous, truth.coulomb, truth.static, effects)
 
         self.load_offset = np.zeros(n)          # torque_offset: a constant load torque on each motor (N*m)
@@ -129,6 +133,26 @@ class Plant:
         self._Qm = np.zeros(self.dyn.nz)
         self._viscous_j = self.dyn.Kp_inv_T * self.friction.viscous        # K^-T diag(B), motor velocity in
         self.reset()
+
+    @staticmethod
+    def _true_gear_matrix(drives, effects, source) -> np.ndarray:
+        """The arm's joint-from-motor matrix: ``drives.yaml``'s K, or with ``coupling`` effects
+        ``K_true = (I + sum c e_j e_i^T) K`` (joint j turns c rad more per rad of joint i). The physics (link angles
+        and velocities from the motors, motor torques ``K_true^T tau`` from the links, hence power
+        ``tau_m . theta_m_d = tau . q_d``) uses it; the encoders still read the motors and the drives still use K."""
+        K = np.asarray(drives.gear_ratio_matrix, dtype=float)
+        couplings = [(i, e) for i, e in enumerate(effects) if e.kind == "coupling"]
+        if not couplings:
+            return K
+        C = np.eye(len(K))
+        for _, e in couplings:
+            for j in e.joints:
+                C[j, e["from_joint"]] += e["coefficient"]
+        if abs(np.linalg.det(C)) < 1e-6:
+            raise ConfigError(source, f"effects[{couplings[-1][0]}].coefficient",
+                              "the couplings together make the gear matrix singular (two joints driven as one): "
+                              "reduce the coefficients")
+        return C @ K
 
     # ------------------------------------------------------------------ state
     def reset(self, q_joint=None) -> None:
@@ -221,7 +245,7 @@ class Plant:
     def gravity_torque(self, q_joint=None) -> np.ndarray:
         """Motor-side gravity torque ``K^T g(q)`` at link angles ``q_joint`` (default: the current ones)."""
         q_joint = self.q_joint if q_joint is None else np.asarray(q_joint, dtype=float)
-        q_motor = self.robot.drives.motor_from_joint(q_joint)
+        q_motor = self.dyn.z_from_link(self.dyn.perm @ q_joint)[: self.n]     # through the arm's (true) K
         z = np.zeros(self.n)
         return self.dyn.inverse_dynamics(q_motor, z, z)
 

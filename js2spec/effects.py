@@ -16,7 +16,7 @@ last joint (the hand). "motor side" means the motor shaft (the coordinate of eq.
 side" the link side of the gear.
 
 Checks (``Param.check``): ``pos`` > 0, ``nonneg`` >= 0, ``any`` finite, ``vec3`` 3 finite numbers, ``vec3nonneg``
-3 numbers >= 0. A default of :data:`REQUIRED` makes the parameter required; ``None`` means "taken from another
+3 numbers >= 0, ``fraction`` strictly between -1 and 1, ``joint`` a joint index or name other than the effect's own. A default of :data:`REQUIRED` makes the parameter required; ``None`` means "taken from another
 effect" (backlash's stiffness and damping from the joint's ``joint_elasticity``).
 
 Unknown kinds or parameters, missing required parameters, bad values and duplicate (kind, joint) pairs raise
@@ -38,7 +38,7 @@ class _Required:
 
 
 REQUIRED = _Required()
-CHECKS = ("pos", "nonneg", "any", "vec3", "vec3nonneg")
+CHECKS = ("pos", "nonneg", "any", "vec3", "vec3nonneg", "fraction", "joint")
 
 
 @dataclass(frozen=True)
@@ -119,6 +119,15 @@ EFFECT_KINDS: dict[str, Kind] = {k.name: k for k in (
                                                 "of eq. 1", "motor side"),),
         "a constant torque acting on the motor against the drive (a preload, a cable, a counterbalance's error, a "
         "torque zero that moved): the measured torque is eq. 1's plus the offset, in both directions and at rest"),
+    Kind("coupling", (
+        Param("from_joint", "-", "joint", REQUIRED, "the joint whose motion also turns the effect's joint (0-based "
+                                                   "index or name)"),
+        Param("coefficient", "rad/rad", "fraction", REQUIRED, "c: rad the effect's joint turns per rad of from_joint "
+                                                              "besides the model's K (|c| < 1)", "joint side")),
+        "a transmission (gear matrix) error: the arm's joint-from-motor matrix is K_true = (I + c e_j e_i^T) K "
+        "(i = from_joint, j the effect's joint): joint j turns c rad more per rad of joint i than K says, and motor i "
+        "carries c tau_j more of joint j's torque (motor torques K_true^T tau); the encoders read the motors, the "
+        "drives and the model use K"),
     Kind("backlash", (
         Param("width", "rad", "pos", REQUIRED, "total play b", "joint side"),
         Param("stiffness", "N*m/rad", "pos", None, "contact stiffness (default: the joint's joint_elasticity "
@@ -152,7 +161,8 @@ class Effect:
 
 
 def check_value(value, check: str, source, key: str):
-    """Validate one parameter value against its check; return it as float (or a (3,) array)."""
+    """Validate one parameter value against its check; return it as float (or a (3,) array). ``joint`` checks are
+    done in :func:`parse_effects` (they need the joint names)."""
     if check in ("vec3", "vec3nonneg"):
         try:
             arr = np.asarray(value, dtype=float)
@@ -171,7 +181,20 @@ def check_value(value, check: str, source, key: str):
         raise ConfigError(source, key, f"must be > 0, got {value}")
     if check == "nonneg" and value < 0:
         raise ConfigError(source, key, f"must be >= 0, got {value}")
+    if check == "fraction" and not -1.0 < value < 1.0:
+        raise ConfigError(source, key, f"must be between -1 and 1 (exclusive), got {value}")
     return value
+
+
+def _joint_index(j, n: int, joints, source, key: str) -> int:
+    """A 0-based joint index or a joint name (``drives.yaml`` ``joints``) -> the index; else a ConfigError."""
+    if isinstance(j, str) and joints is not None and j in joints:
+        j = joints.index(j)
+    if isinstance(j, np.integer):
+        j = int(j)
+    if isinstance(j, bool) or not isinstance(j, int) or not 0 <= j < n:
+        raise ConfigError(source, key, f"{j!r} is not a joint (0..{n - 1}" + (f" or one of {joints})" if joints else ")"))
+    return j
 
 
 def parse_effects(items, n: int, source: str | Path | None = None, joints: list[str] | None = None,
@@ -182,7 +205,7 @@ def parse_effects(items, n: int, source: str | Path | None = None, joints: list[
     if not isinstance(items, (list, tuple)):
         raise ConfigError(source, prefix, f"must be a list of effects, got {type(items).__name__}")
     out: list[Effect] = []
-    seen: set[tuple[str, int]] = set()
+    seen: set[tuple] = set()
     for i, item in enumerate(items):
         where = f"{prefix}[{i}]"
         if isinstance(item, Effect):
@@ -210,21 +233,24 @@ def parse_effects(items, n: int, source: str | Path | None = None, joints: list[
         if not isinstance(js, (list, tuple)) or not js:
             raise ConfigError(source, f"{where}.joints", f"must be a non-empty list, got {js!r}")
         idx = []
+        # a coupling is one per (driven joint, source joint): the source is part of its key
+        src = item.get("from_joint") if kind == "coupling" else None
+        src = _joint_index(src, n, joints, source, f"{where}.from_joint") if src is not None else None
         for j in js:
-            if isinstance(j, str) and joints is not None and j in joints:
-                j = joints.index(j)
-            if isinstance(j, np.integer):
-                j = int(j)
-            if isinstance(j, bool) or not isinstance(j, int) or not 0 <= j < n:
-                raise ConfigError(source, f"{where}.joints",
-                                  f"{j!r} is not a joint (0..{n - 1}" + (f" or one of {joints})" if joints else ")"))
-            if (kind, j) in seen:
+            j = _joint_index(j, n, joints, source, f"{where}.joints")
+            if (kind, j, src) in seen:
                 raise ConfigError(source, f"{where}.joints", f"{kind} is configured twice on joint {j}")
-            seen.add((kind, j))
+            if src is not None and src == j:
+                raise ConfigError(source, f"{where}.from_joint", f"is the effect's own joint {j}: a coupling links "
+                                                                 "two different joints")
+            seen.add((kind, j, src))
             idx.append(j)
         params = {}
         for p in spec.params:
             if p.name in item and item[p.name] is not None:
+                if p.check == "joint":
+                    params[p.name] = src
+                    continue
                 params[p.name] = check_value(item[p.name], p.check, source, f"{where}.{p.name}")
             elif p.required:
                 raise ConfigError(source, f"{where}.{p.name}",

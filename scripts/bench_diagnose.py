@@ -8,7 +8,10 @@
    random host controller (the trajectory controller's gains scaled by 0.6-1.6); the simulator records it with
    those effects, the model (identified at 500 Hz) knows none of them;
 3. js2-diagnose with its defaults (no flags) names what it finds; a true effect counts as found when the same kind
-   is named on the same joint (payload: the same link).
+   is named on the same joint (payload: the same link; coupling: the same driven joint and the same ``from_joint``).
+
+Cases 0-47 draw from the first eight kinds (their recordings are kept); cases from 48 on also conceal ``coupling``
+(``NEW_KINDS``): e.g. ``--first 48 --cases 16``.
 
 Prints the confusion matrix (rows: concealed kind, or `none` for a clean case; columns: what was named on that
 joint, `nothing` when nothing was) plus the false names (named where nothing of that kind was concealed), the rates
@@ -34,8 +37,13 @@ from pathlib import Path
 import numpy as np
 
 KINDS = ("stribeck", "cogging", "payload_change", "thermal_drift", "load_dependent_friction", "asymmetric_friction",
-         "joint_elasticity", "backlash")          # the kinds the cases conceal (their draw order fixes the cases)
-NAMED = KINDS + ("torque_offset",)               # what the diagnosis can name (columns of the confusion matrix)
+         "joint_elasticity", "backlash")          # the kinds cases 0-47 conceal (their draw order fixes those cases)
+#: kinds added after the first 48 cases were recorded: drawn only for cases from NEW_KINDS_FROM on, so that cases
+#: 0-47 (and their kept recordings) stay what they were
+NEW_KINDS = ("coupling",)
+NEW_KINDS_FROM = 48
+ALL_KINDS = KINDS + NEW_KINDS
+NAMED = ALL_KINDS + ("torque_offset",)           # what the diagnosis can name (columns of the confusion matrix)
 
 
 def draw_effect(rng: np.random.Generator, kind: str, n: int) -> dict:
@@ -63,6 +71,11 @@ def draw_effect(rng: np.random.Generator, kind: str, n: int) -> dict:
     if kind == "backlash":
         return {"kind": kind, "joints": [int(rng.integers(0, 3))], "width": float(rng.uniform(0.02, 0.06)),
                 "stiffness": 3000.0, "damping": 3.0}
+    if kind == "coupling":      # joint j also turned by a neighbour i (any adjacent pair), |c| 0.04-0.12, either sign
+        j = int(rng.integers(0, n))
+        i = j + 1 if j == 0 else j - 1 if j == n - 1 else j + int(rng.choice([-1, 1]))
+        return {"kind": kind, "joints": [j], "from_joint": i,
+                "coefficient": float(rng.uniform(0.04, 0.12) * rng.choice([-1.0, 1.0]))}
     raise ValueError(kind)
 
 
@@ -71,12 +84,18 @@ RATES_HZ = (250.0, 500.0, 1000.0)
 
 def draw_case(seed: int, n: int, base_trials: dict) -> dict:
     """Case ``seed``: ~15 % clean, ~25 % two effects (different kinds, different joints), else one effect; its own
-    trajectories, sample rate and controller gains."""
+    trajectories, sample rate and controller gains. Cases from ``NEW_KINDS_FROM`` on draw from all kinds, the new
+    ones first in every even case (so they get a fair share of the new cases); earlier cases are unchanged."""
     rng = np.random.default_rng(1000 + seed)
     u = rng.uniform()
     count = 0 if u < 0.15 else (2 if u > 0.75 else 1)
     effects, used = [], set()
-    kinds = [str(k) for k in rng.permutation(KINDS)]
+    if seed < NEW_KINDS_FROM:
+        kinds = [str(k) for k in rng.permutation(KINDS)]
+    else:
+        kinds = [str(k) for k in rng.permutation(ALL_KINDS)]
+        if seed % 2 == 0:
+            kinds = [k for k in kinds if k in NEW_KINDS] + [k for k in kinds if k not in NEW_KINDS]
     for kind in kinds:
         if len(effects) == count:
             break
@@ -115,7 +134,8 @@ def record(robot, path: Path, effects, trials_cfg: dict, seed: int, cycle_hz: fl
 
 PARAMS = {"stribeck": ["velocity", "shape"], "cogging": ["periods_per_rev", "amplitude"], "payload_change": ["mass"],
           "thermal_drift": ["time_constant"], "load_dependent_friction": ["coefficient"],
-          "asymmetric_friction": ["negative_scale"], "joint_elasticity": ["stiffness"], "backlash": ["width"]}
+          "asymmetric_friction": ["negative_scale"], "joint_elasticity": ["stiffness"], "backlash": ["width"],
+          "coupling": ["coefficient"]}
 
 
 def param_errors(true: dict, found: dict) -> dict:
@@ -153,7 +173,7 @@ def visibility(rec: Path, model: Path, effects: list[dict], out: Path) -> list[f
         rep = replay_recording(rec, model, path, forward=False)
         path.unlink(missing_ok=True)
         g = 1.0 - (rep.rms("effects") / rep.rms("model")) ** 2
-        vis.append(float(np.nanmax(g) if e["kind"] == "payload_change" else g[e["joints"][0]]))
+        vis.append(float(np.nanmax(g) if e["kind"] in ("payload_change", "coupling") else g[e["joints"][0]]))
     return vis
 
 
@@ -203,17 +223,24 @@ def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bo
     return row
 
 
+def _key(f: dict, joint: int) -> tuple:
+    """What must match for a name to be right: kind and joint (link for a payload), and for a coupling the joint it
+    comes from as well."""
+    return (f["kind"], joint) + ((f.get("from_joint"),) if f["kind"] == "coupling" else ())
+
+
 def score(rows: list[dict]) -> dict:
-    labels = ["none"] + list(KINDS)
+    labels = ["none"] + list(ALL_KINDS)
     cols = ["nothing"] + list(NAMED)
     conf = {r: {c: 0 for c in cols} for r in labels}
     false_names = {k: 0 for k in NAMED}
     hits = total = clean_ok = clean = 0
     vis_hits = vis_total = 0
     hidden = []                          # (case, kind, joint, visibility, found) of effects below MIN_VISIBLE
-    errors = {k: [] for k in KINDS}
+    errors = {k: [] for k in ALL_KINDS}
+    wrong_source = 0
     for row in rows:
-        named = {(f["kind"], f["joint"]): f for f in row["named"]}
+        named = {_key(f["effect"], f["joint"]): f for f in row["named"]}
         if not row["effects"]:
             clean += 1
             clean_ok += not named
@@ -226,9 +253,11 @@ def score(rows: list[dict]) -> dict:
         vis = row.get("visibility") or [None] * len(row["effects"])
         for e, v in zip(row["effects"], vis):
             j = e["joints"][0]
-            true_keys.add((e["kind"], j))
+            true_keys.add(_key(e, j))
             total += 1
-            f = named.get((e["kind"], j))
+            f = named.get(_key(e, j))
+            if f is None and e["kind"] == "coupling":
+                wrong_source += any(g["kind"] == "coupling" and g["joint"] == j for g in row["named"])
             if visible(v):
                 vis_total += 1
                 vis_hits += f is not None
@@ -244,7 +273,8 @@ def score(rows: list[dict]) -> dict:
         for key, f in named.items():
             if key not in true_keys:
                 false_names[f["kind"]] += 1
-    return {"confusion": conf, "false_names": false_names, "effects_found": hits, "effects": total,
+    return {"confusion": conf, "false_names": false_names, "coupling_wrong_source": wrong_source,
+            "effects_found": hits, "effects": total,
             "effect_rate": hits / total if total else float("nan"),
             "visible_found": vis_hits, "visible": vis_total,
             "visible_rate": vis_hits / vis_total if vis_total else float("nan"), "below_floor": hidden,
@@ -256,7 +286,7 @@ def print_report(s: dict, rows: list[dict]) -> None:
     cols = ["nothing"] + list(NAMED)
     short = {"torque_offset": "offs", "nothing": "nothing", "stribeck": "strib", "cogging": "cogg", "payload_change": "payl",
              "thermal_drift": "therm", "load_dependent_friction": "loadf", "asymmetric_friction": "asym",
-             "joint_elasticity": "elast", "backlash": "backl"}
+             "joint_elasticity": "elast", "backlash": "backl", "coupling": "coupl"}
     print(f"cases: {len(rows)} ({s['clean']} clean, {s['effects']} concealed effects)")
     print("| concealed \\ named on that joint | " + " | ".join(short[c] for c in cols) + " |")
     print("|---" * (len(cols) + 1) + "|")
@@ -265,18 +295,21 @@ def print_report(s: dict, rows: list[dict]) -> None:
             print(f"| {r} | " + " | ".join(str(d[c]) if d[c] else "." for c in cols) + " |")
     print("false names (named where that kind was not concealed): "
           + (", ".join(f"{k} {v}" for k, v in s["false_names"].items() if v) or "none"))
+    if s.get("coupling_wrong_source"):
+        print(f"couplings named on the right joint from the wrong joint (counted missed, and a false name): "
+              f"{s['coupling_wrong_source']}")
     for row in rows:                      # each false name with its report gain (a true one's for comparison)
-        true_keys = {(e["kind"], e["joints"][0]) for e in row["effects"]}
+        true_keys = {_key(e, e["joints"][0]) for e in row["effects"]}
         for f in row["named"]:
-            if (f["kind"], f["joint"]) not in true_keys:
+            if _key(f["effect"], f["joint"]) not in true_keys:
                 print(f"  false name: case {row['seed']:3d} ({row.get('cycle_hz') or 500:g} Hz) {f['kind']} on joint "
                       f"{f['joint']}, report gain {f['report_gain']:.2f}"
                       + (" (clean case)" if not row["effects"] else ""))
     gains = {}
     for row in rows:
-        true_keys = {(e["kind"], e["joints"][0]) for e in row["effects"]}
+        true_keys = {_key(e, e["joints"][0]) for e in row["effects"]}
         for f in row["named"]:
-            if (f["kind"], f["joint"]) in true_keys:
+            if _key(f["effect"], f["joint"]) in true_keys:
                 gains.setdefault(f["kind"], []).append(f["report_gain"])
     print("report gain of the right names: " + ", ".join(f"{k} {min(v):.2f}-{max(v):.2f}" for k, v in gains.items()))
     print(f"right effect and joint: {s['effects_found']}/{s['effects']} = {s['effect_rate']:.0%}; "

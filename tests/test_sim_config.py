@@ -82,7 +82,7 @@ def test_every_documented_effect_builds_with_its_required_parameters():
                                                                    "friction_per_kelvin": 0.005},
                 "load_dependent_friction": {"coefficient": 0.05}, "asymmetric_friction": {"negative_scale": 1.2},
                 "joint_elasticity": {"stiffness": 3000.0}, "backlash": {"width": 0.002, "stiffness": 3000.0},
-                "torque_offset": {"offset": 0.02}}
+                "torque_offset": {"offset": 0.02}, "coupling": {"from_joint": 2, "coefficient": 0.05}}
     assert set(required) == set(EFFECT_PARAMS)
     for kind, params in required.items():
         plant = Plant(robot, effects=[{"kind": kind, "joints": [1], **params}])
