@@ -319,6 +319,15 @@ def print_report(s: dict, rows: list[dict]) -> None:
     for seed, kind, j, v, found in s["below_floor"]:
         print(f"  below the floor: case {seed:3d} {kind} on joint {j}: the exact effect removes {v:.1%} "
               f"({'named anyway' if found else 'not named'})")
+    for row in rows:                      # the misses the residual does show, with what was named instead
+        named = {_key(f["effect"], f["joint"]) for f in row["named"]}
+        for e, v in zip(row["effects"], row.get("visibility") or [None] * len(row["effects"])):
+            j = e["joints"][0]
+            if visible(v) and _key(e, j) not in named:
+                on_j = [g["kind"] for g in row["named"] if g["joint"] == j]
+                print(f"  missed: case {row['seed']:3d} ({row.get('cycle_hz') or 500:g} Hz) {e['kind']} on joint {j}"
+                      + (f", the exact effect removes {v:.0%}" if v is not None else "")
+                      + f"; named there: {', '.join(on_j) or 'nothing'}")
     for kind, errs in s["param_errors"].items():
         by = {}
         for e in errs:
