@@ -78,6 +78,39 @@ class Term:
         cols[:, motors] = rd.lowpass(np.ascontiguousarray(cols[:, motors]))
         return cols
 
+    def band_columns(self, rd: ResidualData, j: int, h) -> np.ndarray:
+        """The columns (N, n, k) in the band the term is compared in (``columns_low`` or ``columns``)."""
+        return self.columns_low(rd, j, h) if self.band == "low" else self.columns(rd, j, h)
+
+    GRID_BATCH = 2 ** 22      # elements (N x motors x columns x grid points) of one batch of grid_columns
+
+    def grid_columns(self, rd: ResidualData, j: int, grid, rows: np.ndarray):
+        """Every grid point's columns on ``rows`` ((N, m) bool over the term's motors ``motors(rd, j)``): yields
+        ``(h, X)`` with X = ``band_columns(rd, j, h)[:, motors, :][rows]``, shape (rows.sum(), k), in grid order.
+
+        Default: a term that filters with :meth:`Term.columns_low` has the columns of several grid points filtered
+        in one call (the filter acts on each column alone, so the numbers are the same as one call per grid point);
+        otherwise one ``band_columns`` per grid point. A term overrides it where all grid points' columns come
+        cheaper together (:meth:`Cogging.grid_columns`)."""
+        motors = self.motors(rd, j)
+        if self.band != "low" or type(self).columns_low is not Term.columns_low:
+            for h in grid:
+                yield h, self.band_columns(rd, j, h)[:, motors, :][rows]
+            return
+        grid = list(grid)
+        start = 0
+        while start < len(grid):
+            raw = [np.ascontiguousarray(self.columns(rd, j, grid[start])[:, motors, :])]
+            per = max(1, self.GRID_BATCH // raw[0].size)
+            chunk = grid[start:start + per]
+            raw += [np.ascontiguousarray(self.columns(rd, j, h)[:, motors, :]) for h in chunk[1:]]
+            low = rd.lowpass(np.concatenate(raw, axis=2))[rows]          # (L, k x grid points)
+            k = raw[0].shape[2]
+            del raw
+            for i, h in enumerate(chunk):
+                yield h, low[:, i * k:(i + 1) * k]
+            start += len(chunk)
+
     def motors(self, rd: ResidualData, j: int) -> np.ndarray:
         """Motors whose torque the term can change (where it is fitted and scored)."""
         return np.array([j])
@@ -93,7 +126,12 @@ class Term:
 
 
 def _moving(rd: ResidualData, i: int) -> np.ndarray:
-    return np.nan_to_num(rd.dq_motor[:, i])
+    """Motor i's speed with NaN as 0, made once per recording (read-only: every term shares it)."""
+    cache = rd.extra.setdefault("moving", {})
+    if i not in cache:
+        cache[i] = np.nan_to_num(rd.dq_motor[:, i])
+        cache[i].setflags(write=False)
+    return cache[i]
 
 
 def _sgn(x):
@@ -225,6 +263,32 @@ class Cogging(Term):
         col[:, j, 0], col[:, j, 1] = s * fwd, c * fwd
         col[:, j, 2], col[:, j, 3] = s * (1 - fwd), c * (1 - fwd)
         return col
+
+    def grid_columns(self, rd, j, grid, rows):
+        """:meth:`Term.grid_columns` on motor j alone (the columns are zero on the other motors): unfiltered, the
+        sines on ``rows`` only; in the torque band, many period counts filtered in one call (per column, the same
+        numbers as :meth:`Term.columns_low`)."""
+        if rows.shape[1] != 1:
+            yield from super().grid_columns(rd, j, grid, rows)
+            return
+        on = rows[:, 0]
+        th = np.nan_to_num(rd.q_motor[:, j])
+        fwd = (_moving(rd, j) >= 0).astype(float)
+        if self.band != "low":
+            th, fwd = th[on], fwd[on]
+        grid = list(grid)
+        per = max(1, self.GRID_BATCH // (4 * len(th)))
+        for start in range(0, len(grid), per):
+            chunk = grid[start:start + per]
+            XT = np.empty((len(chunk), 4, len(th)))        # time along the last axis: the filter's layout
+            for i, h in enumerate(chunk):
+                s, c = np.sin(h * th), np.cos(h * th)
+                XT[i, 0], XT[i, 1] = s * fwd, c * fwd
+                XT[i, 2], XT[i, 3] = s * (1 - fwd), c * (1 - fwd)
+            if self.band == "low":
+                XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1))[:, on].reshape(len(chunk), 4, -1)
+            for i, h in enumerate(chunk):
+                yield h, XT[i].T
 
     AGREE = 0.5         # the two directions' ripples (phasors) may differ by at most this share of their mean
 
