@@ -94,8 +94,10 @@ class Term:
         cheaper together (:meth:`Cogging.grid_columns`)."""
         motors = self.motors(rd, j)
         if self.band != "low" or type(self).columns_low is not Term.columns_low:
+            t_idx, m_idx = np.nonzero(rows)             # the rows in the order boolean indexing gives them
+            m_idx = np.asarray(motors)[m_idx]
             for h in grid:
-                yield h, self.band_columns(rd, j, h)[:, motors, :][rows]
+                yield h, self.band_columns(rd, j, h)[t_idx, m_idx, :]
             return
         grid = list(grid)
         start = 0

@@ -134,27 +134,57 @@ class MismatchSearch:
                        for name, m in masks.items()}}
         return st
 
+    CACHE_BYTES = 3 * 2 ** 29     # weighted columns kept across ladder steps (1.5 GiB; beyond it they are rebuilt)
+
     def _fit_grid(self, rd: ResidualData, term: Term, j: int, motors: np.ndarray, sel_fit: np.ndarray,
-                  rw: np.ndarray, w: np.ndarray, grid):
+                  rw: np.ndarray, w: np.ndarray, grid, key=None):
         """Weighted least squares at every grid point on the rows ``sel_fit`` ((N, m) over ``motors``); the grid
         point with the least SSE (the first of equals), its coefficients, their std and its torque (N, m) on its
-        motors. None when every grid point's columns are zero there."""
+        motors. None when every grid point's columns are zero there.
+
+        A ladder candidate (``key``) of one motor filtered into the torque band keeps its weighted columns and Gram
+        matrices for the next steps (they do not change, only the residual does), within ``CACHE_BYTES``."""
         b = rw[:, motors][sel_fit]
-        w_sub = np.broadcast_to(w[motors], sel_fit.shape)[sel_fit][:, None]
+        items = self._columns_cache.get(key) if key is not None else None
+        if items is None:
+            w_sub = np.broadcast_to(w[motors], sel_fit.shape)[sel_fit][:, None]
+            hs = term.grid(rd, j) if grid is None else grid
+            keep = key is not None and term.band == "low" and len(motors) == 1
+            items = []
+            for h, X in term.grid_columns(rd, j, hs, sel_fit):
+                A = X * w_sub
+                if not np.any(A):
+                    continue
+                items.append((h, A, A.T @ A))    # normal equations on the (k x k) Gram matrix: few columns, many rows
+                if keep and len(items) == 1:
+                    keep = self._cache_used + A.nbytes * len(hs) <= self.CACHE_BYTES
+                    self._cache_used += A.nbytes * len(hs) if keep else 0
+                if not keep:
+                    items[-1] = self._solve(items[-1], b)
+            if keep:
+                self._columns_cache[key] = items
+            else:
+                best = min(items, key=lambda it: it[0]) if items else None      # the first of equals
+                return self._finish(rd, term, j, motors, best, len(b))
         best = None
-        for h, X in term.grid_columns(rd, j, term.grid(rd, j) if grid is None else grid, sel_fit):
-            A = X * w_sub
-            if not np.any(A):
-                continue
-            G = A.T @ A                      # normal equations on the (k x k) Gram matrix: few columns, many rows
-            coef = np.linalg.lstsq(G, A.T @ b, rcond=None)[0]
-            sse = float(np.sum((b - A @ coef) ** 2))
-            if best is None or sse < best[0]:
-                best = (sse, h, coef, G)
+        for it in items:
+            solved = self._solve(it, b)
+            if best is None or solved[0] < best[0]:
+                best = solved
+        return self._finish(rd, term, j, motors, best, len(b))
+
+    @staticmethod
+    def _solve(item, b):
+        h, A, G = item
+        coef = np.linalg.lstsq(G, A.T @ b, rcond=None)[0]
+        return float(np.sum((b - A @ coef) ** 2)), h, coef, G
+
+    @staticmethod
+    def _finish(rd, term, j, motors, best, rows):
         if best is None:
             return None
         sse, h, coef, G = best
-        dof = max(len(b) - len(coef), 1)
+        dof = max(rows - len(coef), 1)
         cov = sse / dof * np.linalg.pinv(G)        # parameter covariance of the weighted LS
         std = np.sqrt(np.clip(np.diag(cov), 0, None))
         contrib = term.band_columns(rd, j, h)[:, motors, :] @ coef      # (N, m)
@@ -181,7 +211,7 @@ class MismatchSearch:
         if hit is not None and hit[0] == version:
             fitted_grid = hit[1]
         else:
-            fitted_grid = self._fit_grid(rd, term, j, motors, sel_fit, rw, w, grid)
+            fitted_grid = self._fit_grid(rd, term, j, motors, sel_fit, rw, w, grid, key)
             if key is not None:
                 self._fits[key] = (version, fitted_grid)
         if fitted_grid is None:
@@ -251,6 +281,7 @@ class MismatchSearch:
         # the ladder's caches: each candidate's fit until an accepted term changes its motors' residual (a version
         # per band and motor), and the residual's statistics
         self._fits, self._stats_cache, self._masks = {}, {}, None
+        self._columns_cache, self._cache_used = {}, 0
         self._versions = {band: np.zeros(rd.n, dtype=int) for band in res}
         tasks = [(t, j) for t in self.library for j in (range(rd.n) if t.per_joint else t.joints(rd))]
         taken = set()
@@ -301,7 +332,7 @@ class MismatchSearch:
             self.corrections_["wide"] += raw
         self.final_ = {band: {"fit": _rms(r, m_fit), "select": _rms(r, m_sel), "holdout": _rms(r, m_rep)}
                        for band, r in res.items()}
-        for cache in ("_fits", "_stats_cache", "_masks"):     # the caches hold arrays of the recording's size
+        for cache in ("_fits", "_stats_cache", "_masks", "_columns_cache"):   # arrays of the recording's size
             self.__dict__.pop(cache, None)
         return self
 
