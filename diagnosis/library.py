@@ -684,6 +684,24 @@ class Backlash(_Compliance):
         col[:, :, 1:] = el_low
         return col
 
+    def grid_columns(self, rd, j, grid, rows):
+        """:meth:`Term.grid_columns` gathered on ``rows`` straight from :meth:`columns_low`'s filtered responses
+        (the elastic column is the same at every grid point): no (N, n, 2) array per grid point."""
+        grid = list(grid)
+        if not grid:
+            return
+        self.columns_low(rd, j, grid[0])                   # makes the filtered responses (rd.extra["backlash_low"])
+        resp_low, el_low = rd.extra["backlash_low"][j]
+        t_idx, m_idx = np.nonzero(rows)
+        m_idx = np.asarray(self.motors(rd, j))[m_idx]
+        elastic = el_low[t_idx, m_idx, 0]
+        scale = rd.K[j, m_idx]
+        for h in grid:
+            X = np.empty((len(t_idx), 2))
+            X[:, 0] = resp_low[t_idx, int(h)] * scale
+            X[:, 1] = elastic
+            yield h, X
+
     def effect(self, rd, j, h, coef, std):
         b, k, d = _link_response(rd, j)[1][int(h)]
         ok = 0.3 < coef[0] < 1.7 and coef[0] > 3 * std[0]

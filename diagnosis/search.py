@@ -187,7 +187,8 @@ class MismatchSearch:
         dof = max(rows - len(coef), 1)
         cov = sse / dof * np.linalg.pinv(G)        # parameter covariance of the weighted LS
         std = np.sqrt(np.clip(np.diag(cov), 0, None))
-        contrib = term.band_columns(rd, j, h)[:, motors, :] @ coef      # (N, m)
+        every_row = np.ones((len(rd.t), len(motors)), dtype=bool)      # = band_columns(rd, j, h)[:, motors, :]
+        contrib = next(term.grid_columns(rd, j, [h], every_row))[1].reshape(len(rd.t), len(motors), -1) @ coef
         return h, coef, std, contrib
 
     def _evaluate(self, rd: ResidualData, term: Term, j: int, res: dict, weights: dict, grid=None,
