@@ -100,17 +100,20 @@ class Term:
                 yield h, self.band_columns(rd, j, h)[t_idx, m_idx, :]
             return
         grid = list(grid)
+        t_idx, m_loc = np.nonzero(rows)                # the rows in the order boolean indexing gives them
+        N, m = rows.shape
         start = 0
         while start < len(grid):
-            raw = [np.ascontiguousarray(self.columns(rd, j, grid[start])[:, motors, :])]
-            per = max(1, self.GRID_BATCH // raw[0].size)
-            chunk = grid[start:start + per]
-            raw += [np.ascontiguousarray(self.columns(rd, j, h)[:, motors, :]) for h in chunk[1:]]
-            low = rd.lowpass(np.concatenate(raw, axis=2))[rows]          # (L, k x grid points)
-            k = raw[0].shape[2]
-            del raw
+            first = self.columns(rd, j, grid[start])[:, motors, :]
+            k = first.shape[2]
+            chunk = grid[start:start + max(1, self.GRID_BATCH // first.size)]
+            XT = np.empty((len(chunk), m, k, N))          # time along the last axis: the filter's layout
+            XT[0] = first.transpose(1, 2, 0)
+            for i, h in enumerate(chunk[1:], 1):
+                XT[i] = self.columns(rd, j, h)[:, motors, :].transpose(1, 2, 0)
+            low = rd.lowpass_series(XT.reshape(-1, N)).reshape(XT.shape)
             for i, h in enumerate(chunk):
-                yield h, low[:, i * k:(i + 1) * k]
+                yield h, low[i][m_loc, :, t_idx]               # (L, k)
             start += len(chunk)
 
     def motors(self, rd: ResidualData, j: int) -> np.ndarray:
@@ -278,6 +281,7 @@ class Cogging(Term):
         fwd = (_moving(rd, j) >= 0).astype(float)
         if self.band != "low":
             th, fwd = th[on], fwd[on]
+        bwd = 1 - fwd
         grid = list(grid)
         per = max(1, self.GRID_BATCH // (4 * len(th)))
         for start in range(0, len(grid), per):
@@ -285,8 +289,10 @@ class Cogging(Term):
             XT = np.empty((len(chunk), 4, len(th)))        # time along the last axis: the filter's layout
             for i, h in enumerate(chunk):
                 s, c = np.sin(h * th), np.cos(h * th)
-                XT[i, 0], XT[i, 1] = s * fwd, c * fwd
-                XT[i, 2], XT[i, 3] = s * (1 - fwd), c * (1 - fwd)
+                np.multiply(s, fwd, out=XT[i, 0])
+                np.multiply(c, fwd, out=XT[i, 1])
+                np.multiply(s, bwd, out=XT[i, 2])
+                np.multiply(c, bwd, out=XT[i, 3])
             if self.band == "low":
                 XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1))[:, on].reshape(len(chunk), 4, -1)
             for i, h in enumerate(chunk):

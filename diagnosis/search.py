@@ -187,8 +187,12 @@ class MismatchSearch:
         dof = max(rows - len(coef), 1)
         cov = sse / dof * np.linalg.pinv(G)        # parameter covariance of the weighted LS
         std = np.sqrt(np.clip(np.diag(cov), 0, None))
-        every_row = np.ones((len(rd.t), len(motors)), dtype=bool)      # = band_columns(rd, j, h)[:, motors, :]
-        contrib = next(term.grid_columns(rd, j, [h], every_row))[1].reshape(len(rd.t), len(motors), -1) @ coef
+        if term.band == "low" and type(term).columns_low is Term.columns_low:
+            # the filter is linear: the torque filtered once, not each column (as the ladder adds an accepted term)
+            contrib = rd.lowpass(term.columns(rd, j, h)[:, motors, :] @ coef)      # (N, m)
+        else:
+            every_row = np.ones((len(rd.t), len(motors)), dtype=bool)   # = band_columns(rd, j, h)[:, motors, :]
+            contrib = next(term.grid_columns(rd, j, [h], every_row))[1].reshape(len(rd.t), len(motors), -1) @ coef
         return h, coef, std, contrib
 
     def _evaluate(self, rd: ResidualData, term: Term, j: int, res: dict, weights: dict, grid=None,
