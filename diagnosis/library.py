@@ -111,7 +111,14 @@ class Term:
             XT[0] = first.transpose(1, 2, 0)
             for i, h in enumerate(chunk[1:], 1):
                 XT[i] = self.columns(rd, j, h)[:, motors, :].transpose(1, 2, 0)
-            low = rd.lowpass_series(XT.reshape(-1, N)).reshape(XT.shape)
+            # a column the same at every grid point of the chunk (e.g. a nested refit's) is filtered once
+            same = np.array([[all(np.array_equal(XT[i, a, c], XT[0, a, c]) for i in range(1, len(chunk)))
+                              for c in range(k)] for a in range(m)])
+            todo = np.ones(XT.shape[:3], dtype=bool)
+            todo[1:, same] = False
+            low = np.empty_like(XT)
+            low[todo] = rd.lowpass_series(XT[todo])
+            low[1:, same] = low[0, same]
             for i, h in enumerate(chunk):
                 yield h, low[i][m_loc, :, t_idx]               # (L, k)
             start += len(chunk)

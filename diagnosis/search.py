@@ -142,14 +142,15 @@ class MismatchSearch:
         point with the least SSE (the first of equals), its coefficients, their std and its torque (N, m) on its
         motors. None when every grid point's columns are zero there.
 
-        A ladder candidate (``key``) of one motor filtered into the torque band keeps its weighted columns and Gram
-        matrices for the next steps (they do not change, only the residual does), within ``CACHE_BYTES``."""
+        A ladder candidate (``key``) filtered into the torque band keeps its weighted columns and Gram matrices for
+        the next steps (they do not change, only the residual does), while they fit in ``CACHE_BYTES`` (in the
+        library's order; the rest are rebuilt at each step)."""
         b = rw[:, motors][sel_fit]
         items = self._columns_cache.get(key) if key is not None else None
         if items is None:
             w_sub = np.broadcast_to(w[motors], sel_fit.shape)[sel_fit][:, None]
             hs = term.grid(rd, j) if grid is None else grid
-            keep = key is not None and term.band == "low" and len(motors) == 1
+            keep = key is not None and term.band == "low"
             items = []
             for h, X in term.grid_columns(rd, j, hs, sel_fit):
                 A = X * w_sub
