@@ -27,8 +27,9 @@ def rd():
 
 
 def _some(grid):
-    """First, middle and last grid points (the whole grid is slow for the test)."""
-    return [grid[i] for i in sorted({0, len(grid) // 2, len(grid) - 1})] if grid else []
+    """The first ten grid points in a row (Cogging's angle-addition rule over a refresh) and the last (the whole
+    grid is slow for the test)."""
+    return list(grid[:10]) + list(grid[-1:]) if len(grid) > 10 else list(grid)
 
 
 @pytest.mark.parametrize("j", [0, 4])
@@ -47,7 +48,8 @@ def test_grid_columns_are_the_band_columns_of_every_term(rd, j):
         for h, X in got:
             want = term.band_columns(rd, j, h)[:, motors, :][rows]
             assert X.shape == want.shape, (term.kind, h)
-            np.testing.assert_allclose(X, want, rtol=1e-12, atol=1e-15 * max(1.0, np.abs(want).max()),
+            # equal to rounding: Cogging's sines by the angle-addition rule are a few ulp from np.sin's
+            np.testing.assert_allclose(X, want, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(want).max()),
                                        err_msg=f"{term.kind} on joint {j}, grid point {h}")
 
 
