@@ -80,6 +80,51 @@ class Term:
         cols[:, motors] = rd.lowpass(np.ascontiguousarray(cols[:, motors]))
         return cols
 
+    def band_columns(self, rd: ResidualData, j: int, h) -> np.ndarray:
+        """The columns (N, n, k) in the band the term is compared in (``columns_low`` or ``columns``)."""
+        return self.columns_low(rd, j, h) if self.band == "low" else self.columns(rd, j, h)
+
+    GRID_BATCH = 2 ** 22      # elements (N x motors x columns x grid points) of one batch of grid_columns
+
+    def grid_columns(self, rd: ResidualData, j: int, grid, rows: np.ndarray):
+        """Every grid point's columns on ``rows`` ((N, m) bool over the term's motors ``motors(rd, j)``): yields
+        ``(h, X)`` with X = ``band_columns(rd, j, h)[:, motors, :][rows]``, shape (rows.sum(), k), in grid order.
+
+        Default: a term that filters with :meth:`Term.columns_low` has the columns of several grid points filtered
+        in one call (the filter acts on each column alone, so the numbers are the same as one call per grid point);
+        otherwise one ``band_columns`` per grid point. A term overrides it where all grid points' columns come
+        cheaper together (:meth:`Cogging.grid_columns`)."""
+        motors = self.motors(rd, j)
+        if self.band != "low" or type(self).columns_low is not Term.columns_low:
+            t_idx, m_idx = np.nonzero(rows)             # the rows in the order boolean indexing gives them
+            m_idx = np.asarray(motors)[m_idx]
+            for h in grid:
+                yield h, self.band_columns(rd, j, h)[t_idx, m_idx, :]
+            return
+        grid = list(grid)
+        t_idx, m_loc = np.nonzero(rows)                # the rows in the order boolean indexing gives them
+        N, m = rows.shape
+        start = 0
+        while start < len(grid):
+            first = self.columns(rd, j, grid[start])[:, motors, :]
+            k = first.shape[2]
+            chunk = grid[start:start + max(1, self.GRID_BATCH // first.size)]
+            XT = np.empty((len(chunk), m, k, N))          # time along the last axis: the filter's layout
+            XT[0] = first.transpose(1, 2, 0)
+            for i, h in enumerate(chunk[1:], 1):
+                XT[i] = self.columns(rd, j, h)[:, motors, :].transpose(1, 2, 0)
+            # a column the same at every grid point of the chunk (e.g. a nested refit's) is filtered once
+            same = np.array([[all(np.array_equal(XT[i, a, c], XT[0, a, c]) for i in range(1, len(chunk)))
+                              for c in range(k)] for a in range(m)])
+            todo = np.ones(XT.shape[:3], dtype=bool)
+            todo[1:, same] = False
+            low = np.empty_like(XT)
+            low[todo] = rd.lowpass_series(XT[todo])
+            low[1:, same] = low[0, same]
+            for i, h in enumerate(chunk):
+                yield h, low[i][m_loc, :, t_idx]               # (L, k)
+            start += len(chunk)
+
     def motors(self, rd: ResidualData, j: int) -> np.ndarray:
         """Motors whose torque the term can change (where it is fitted and scored)."""
         return np.array([j])
@@ -95,7 +140,12 @@ class Term:
 
 
 def _moving(rd: ResidualData, i: int) -> np.ndarray:
-    return np.nan_to_num(rd.dq_motor[:, i])
+    """Motor i's speed with NaN as 0, made once per recording (read-only: every term shares it)."""
+    cache = rd.extra.setdefault("moving", {})
+    if i not in cache:
+        cache[i] = np.nan_to_num(rd.dq_motor[:, i])
+        cache[i].setflags(write=False)
+    return cache[i]
 
 
 def _sgn(x):
@@ -256,6 +306,46 @@ class Cogging(Term):
         col[:, j, 0], col[:, j, 1] = s * fwd, c * fwd
         col[:, j, 2], col[:, j, 3] = s * (1 - fwd), c * (1 - fwd)
         return col
+
+    RECUR = 8           # grid_columns: period counts in a row from one np.sin, np.cos
+
+    def grid_columns(self, rd, j, grid, rows):
+        """:meth:`Term.grid_columns` on motor j alone (the columns are zero on the other motors): unfiltered, the
+        sines on ``rows`` only; in the torque band, many period counts filtered in one call (per column, the same
+        numbers as :meth:`Term.columns_low`)."""
+        if rows.shape[1] != 1:
+            yield from super().grid_columns(rd, j, grid, rows)
+            return
+        on = rows[:, 0]
+        th = np.nan_to_num(rd.q_motor[:, j])
+        fwd = (_moving(rd, j) >= 0).astype(float)
+        if self.band != "low":
+            th, fwd = th[on], fwd[on]
+        bwd = 1 - fwd
+        s1, c1 = np.sin(th), np.cos(th)
+        grid = list(grid)
+        per = max(1, self.GRID_BATCH // (4 * len(th)))
+        for start in range(0, len(grid), per):
+            chunk = grid[start:start + per]
+            XT = np.empty((len(chunk), 4, len(th)))        # time along the last axis: the filter's layout
+            prev = None
+            for i, h in enumerate(chunk):
+                if prev is not None and h == prev[0] + 1 and i % self.RECUR:
+                    # sin, cos of (p + 1) theta by the angle-addition rule from p theta's (a few ulp from np.sin;
+                    # np.sin anew every RECUR period counts)
+                    s = prev[1] * c1 + prev[2] * s1
+                    c = prev[2] * c1 - prev[1] * s1
+                else:
+                    s, c = np.sin(h * th), np.cos(h * th)
+                prev = (h, s, c)
+                np.multiply(s, fwd, out=XT[i, 0])
+                np.multiply(c, fwd, out=XT[i, 1])
+                np.multiply(s, bwd, out=XT[i, 2])
+                np.multiply(c, bwd, out=XT[i, 3])
+            if self.band == "low":
+                XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1))[:, on].reshape(len(chunk), 4, -1)
+            for i, h in enumerate(chunk):
+                yield h, XT[i].T
 
     AGREE = 0.5         # the two directions' ripples (phasors) may differ by at most this share of their mean
 
@@ -648,6 +738,24 @@ class Backlash(_Compliance):
         col[:, :, 0] = resp_low[:, int(h)][:, None] * rd.K[j, :][None, :]
         col[:, :, 1:] = el_low
         return col
+
+    def grid_columns(self, rd, j, grid, rows):
+        """:meth:`Term.grid_columns` gathered on ``rows`` straight from :meth:`columns_low`'s filtered responses
+        (the elastic column is the same at every grid point): no (N, n, 2) array per grid point."""
+        grid = list(grid)
+        if not grid:
+            return
+        self.columns_low(rd, j, grid[0])                   # makes the filtered responses (rd.extra["backlash_low"])
+        resp_low, el_low = rd.extra["backlash_low"][j]
+        t_idx, m_idx = np.nonzero(rows)
+        m_idx = np.asarray(self.motors(rd, j))[m_idx]
+        elastic = el_low[t_idx, m_idx, 0]
+        scale = rd.K[j, m_idx]
+        for h in grid:
+            X = np.empty((len(t_idx), 2))
+            X[:, 0] = resp_low[t_idx, int(h)] * scale
+            X[:, 1] = elastic
+            yield h, X
 
     def effect(self, rd, j, h, coef, std):
         b, k, d = _link_response(rd, j)[1][int(h)]

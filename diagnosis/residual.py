@@ -87,16 +87,22 @@ class ResidualData:
     def lowpass(self, X: np.ndarray) -> np.ndarray:
         """Filter a feature (N, ...) exactly as the measured torque was filtered (parallel filtering)."""
         shp = X.shape
-        flat = np.nan_to_num(X.reshape(shp[0], -1))
+        return np.ascontiguousarray(self.lowpass_series(X.reshape(shp[0], -1).T).T).reshape(shp)
+
+    def lowpass_series(self, XT: np.ndarray) -> np.ndarray:
+        """:meth:`lowpass` of M series given as the rows of XT (M, N), time along the last axis (the layout the
+        filter runs along without copying); returns (M, N). NaN counts as 0."""
+        if not np.isfinite(XT).all():
+            XT = np.nan_to_num(XT)
         sos = self.extra.get("sos")
         if sos is None:       # the torque's filter (Signals.filter_like_torque), designed once per recording
             st = self.signals.settings
             sos = self.extra["sos"] = butter(st.order, st.fc_acceleration_hz, btype="low", fs=self.fs, output="sos")
-        out = np.empty_like(flat)
+        out = np.empty(XT.shape, dtype=XT.dtype)
         for a, b in self.signals.runs:
             pad = min(3 * (2 * len(sos) + 1) * 4, b - a - 1)
-            out[a:b] = sosfiltfilt(sos, flat[a:b], axis=0, padlen=max(pad, 0))
-        return out.reshape(shp)
+            out[:, a:b] = sosfiltfilt(sos, XT[:, a:b], axis=-1, padlen=max(pad, 0))
+        return out
 
 
 def model_cutoffs(fs: float, model: IdentifiedModel | None = None) -> FilterSettings:

@@ -113,61 +113,144 @@ class MismatchSearch:
         return next(t for t in self.library if t.kind == kind)
 
     # -- one candidate ----------------------------------------------------------------------------------------------
+    def _row_masks(self, rd: ResidualData) -> dict:
+        """(N, n) masks of the fit, select and report rows, made once per recording."""
+        cached = getattr(self, "_masks", None)
+        if cached is None or cached[0] is not rd:
+            cached = self._masks = (rd, {name: rd.mask & getattr(rd, name)[:, None]
+                                         for name in ("fit_rows", "select_rows", "holdout_rows")})
+        return cached[1]
+
+    def _stats(self, rd: ResidualData, band: str, r: np.ndarray, w: np.ndarray) -> dict:
+        """What every candidate's gains share, made once per residual (the ladder changes it only when it accepts a
+        term): the weighted residual, its squared sum per motor on each part of the rows, its report-rows RMS."""
+        st = self._stats_cache.get(band)
+        if st is None or st["r"] is not r:
+            rw = r * w
+            masks = self._row_masks(rd)
+            st = self._stats_cache[band] = {
+                "r": r, "rw": rw, "rms": _rms(r, masks["holdout_rows"]),
+                "s0": {name: np.array([float(np.sum(rw[m[:, i], i] ** 2)) for i in range(r.shape[1])])
+                       for name, m in masks.items()}}
+        return st
+
+    CACHE_BYTES = 3 * 2 ** 29     # weighted columns kept across ladder steps (1.5 GiB; beyond it they are rebuilt)
+
+    def _fit_grid(self, rd: ResidualData, term: Term, j: int, motors: np.ndarray, sel_fit: np.ndarray,
+                  rw: np.ndarray, w: np.ndarray, grid, key=None):
+        """Weighted least squares at every grid point on the rows ``sel_fit`` ((N, m) over ``motors``); the grid
+        point with the least SSE (the first of equals), its coefficients, their std and its torque (N, m) on its
+        motors. None when every grid point's columns are zero there.
+
+        A ladder candidate (``key``) filtered into the torque band keeps its weighted columns and Gram matrices for
+        the next steps (they do not change, only the residual does), while they fit in ``CACHE_BYTES`` (in the
+        library's order; the rest are rebuilt at each step)."""
+        b = rw[:, motors][sel_fit]
+        items = self._columns_cache.get(key) if key is not None else None
+        if items is None:
+            w_sub = np.broadcast_to(w[motors], sel_fit.shape)[sel_fit][:, None]
+            hs = term.grid(rd, j) if grid is None else grid
+            keep = key is not None and term.band == "low"
+            items = []
+            for h, X in term.grid_columns(rd, j, hs, sel_fit):
+                A = X * w_sub
+                if not np.any(A):
+                    continue
+                items.append((h, A, A.T @ A))    # normal equations on the (k x k) Gram matrix: few columns, many rows
+                if keep and len(items) == 1:
+                    keep = self._cache_used + A.nbytes * len(hs) <= self.CACHE_BYTES
+                    self._cache_used += A.nbytes * len(hs) if keep else 0
+                if not keep:
+                    items[-1] = self._solve(items[-1], b)
+            if keep:
+                self._columns_cache[key] = items
+            else:
+                best = min(items, key=lambda it: it[0]) if items else None      # the first of equals
+                return self._finish(rd, term, j, motors, best, len(b))
+        best = None
+        for it in items:
+            solved = self._solve(it, b)
+            if best is None or solved[0] < best[0]:
+                best = solved
+        return self._finish(rd, term, j, motors, best, len(b))
+
+    @staticmethod
+    def _solve(item, b):
+        h, A, G = item
+        coef = np.linalg.lstsq(G, A.T @ b, rcond=None)[0]
+        return float(np.sum((b - A @ coef) ** 2)), h, coef, G
+
+    @staticmethod
+    def _finish(rd, term, j, motors, best, rows):
+        if best is None:
+            return None
+        sse, h, coef, G = best
+        dof = max(rows - len(coef), 1)
+        cov = sse / dof * np.linalg.pinv(G)        # parameter covariance of the weighted LS
+        std = np.sqrt(np.clip(np.diag(cov), 0, None))
+        if term.band == "low" and type(term).columns_low is Term.columns_low:
+            # the filter is linear: the torque filtered once, not each column (as the ladder adds an accepted term)
+            contrib = rd.lowpass(term.columns(rd, j, h)[:, motors, :] @ coef)      # (N, m)
+        else:
+            every_row = np.ones((len(rd.t), len(motors)), dtype=bool)   # = band_columns(rd, j, h)[:, motors, :]
+            contrib = next(term.grid_columns(rd, j, [h], every_row))[1].reshape(len(rd.t), len(motors), -1) @ coef
+        return h, coef, std, contrib
+
     def _evaluate(self, rd: ResidualData, term: Term, j: int, res: dict, weights: dict, grid=None,
                   coef_rows=("fit_rows",)) -> Scored | None:
         band = term.band
         r = res[band]
         w = weights[band]
         motors = term.motors(rd, j)
-        rows = {name: rd.mask & getattr(rd, name)[:, None] for name in ("fit_rows", "select_rows", "holdout_rows")}
-        own = {}
-        for name, m in rows.items():
-            o = np.zeros_like(m)
-            o[:, motors] = m[:, motors]
-            own[name] = o
-        sel_fit = own["fit_rows"].copy()
+        rows = self._row_masks(rd)
+        sel_fit = rows[coef_rows[0]][:, motors]
         for extra in coef_rows[1:]:
-            sel_fit |= own[extra]
+            sel_fit = sel_fit | rows[extra][:, motors]
         if sel_fit.sum() < 20:
             return None
-        rw = r * w
-        # the fit sees the term's own motors only: slice them out once (a per-joint term: one motor of n)
-        rows_sub = sel_fit[:, motors]
-        b = rw[:, motors][rows_sub]
-        w_sub = np.broadcast_to(w, r.shape)[:, motors][rows_sub][:, None]
-        best = None
-        for h in (term.grid(rd, j) if grid is None else grid):
-            cols = term.columns_low(rd, j, h) if band == "low" else term.columns(rd, j, h)
-            A = cols[:, motors, :][rows_sub] * w_sub
-            if not np.any(A):
-                continue
-            G = A.T @ A                      # normal equations on the (k x k) Gram matrix: few columns, many rows
-            coef = np.linalg.lstsq(G, A.T @ b, rcond=None)[0]
-            sse = float(np.sum((b - A @ coef) ** 2))
-            if best is None or sse < best[0]:
-                best = (sse, h, coef, cols, G)
-        if best is None:
+        st = self._stats(rd, band, r, w)
+        rw = st["rw"]
+        # the ladder's own candidates: a fit is kept until an accepted term changes the residual of its motors
+        key = (term, j) if grid is None and tuple(coef_rows) == ("fit_rows",) else None
+        version = tuple(self._versions[band][motors]) if key is not None else None
+        hit = self._fits.get(key) if key is not None else None
+        if hit is not None and hit[0] == version:
+            fitted_grid = hit[1]
+        else:
+            fitted_grid = self._fit_grid(rd, term, j, motors, sel_fit, rw, w, grid, key)
+            if key is not None:
+                self._fits[key] = (version, fitted_grid)
+        if fitted_grid is None:
             return None
-        sse, h, coef, cols, G = best
-        dof = max(len(b) - len(coef), 1)
-        cov = sse / dof * np.linalg.pinv(G)        # parameter covariance of the weighted LS
-        std = np.sqrt(np.clip(np.diag(cov), 0, None))
-        contrib = _on_motors(cols, motors) @ coef  # (N, n)
-        new_w = (r - contrib) * w
+        h, coef, std, contrib = fitted_grid
+        # gains: only the term's motors change; sums per motor, the others' from the shared statistics
+        new_w = (r[:, motors] - contrib) * w[motors]                  # (N, m)
+        old_w = rw[:, motors]
 
-        def gain(sel):
-            s0 = float(np.sum(rw[sel] ** 2))
-            return 1.0 - float(np.sum(new_w[sel] ** 2)) / s0 if s0 > 0 else 0.0
+        def sums(x, m):
+            return np.einsum("ij,ij->j", x, np.where(m, x, 0.0))
 
-        own_j = np.zeros_like(rows["select_rows"])
-        own_j[:, j] = rows["select_rows"][:, j]
+        s1 = {name: sums(new_w, m[:, motors]) for name, m in rows.items()}
+
+        def gain(s0, s1_):
+            s0, s1_ = float(np.sum(s0)), float(np.sum(s1_))
+            return 1.0 - s1_ / s0 if s0 > 0 else 0.0
+
+        s_all = st["s0"]["select_rows"].copy()
+        s_all[motors] = s1["select_rows"]
+        s_own = st["s0"]["select_rows"][j]
+        s_own1 = s1["select_rows"][list(motors).index(j)] if j in motors else s_own
+        rms_after = st["rms"].copy()
+        rms_after[motors] = _rms(r[:, motors] - contrib, rows["holdout_rows"][:, motors])
         eff, summary, ok, why = term.effect(rd, j, h, coef, std)
         fitted = Fitted(kind=term.kind, joint=j, hyper=h, coef=coef, coef_std=std, effect=eff, summary=summary,
                         plausible=bool(ok), why_not=why)
-        return Scored(fitted=fitted, fit_gain=gain(sel_fit), select_gain=gain(own["select_rows"]),
-                      select_gain_all=gain(rows["select_rows"]), holdout_gain=gain(own["holdout_rows"]),
-                      rms_before=_rms(r, rows["holdout_rows"]), rms_after=_rms(r - contrib, rows["holdout_rows"]),
-                      band=band, term=term, select_gain_own=gain(own_j))
+        return Scored(fitted=fitted, fit_gain=gain(sums(old_w, sel_fit), sums(new_w, sel_fit)),
+                      select_gain=gain(st["s0"]["select_rows"][motors], s1["select_rows"]),
+                      select_gain_all=gain(st["s0"]["select_rows"], s_all),
+                      holdout_gain=gain(st["s0"]["holdout_rows"][motors], s1["holdout_rows"]),
+                      rms_before=st["rms"].copy(), rms_after=rms_after,
+                      band=band, term=term, select_gain_own=gain(s_own, s_own1))
 
     def _why_rejected(self, s: Scored) -> str:
         if not s.fitted.plausible:
@@ -201,6 +284,11 @@ class MismatchSearch:
         self.rankings_: list[list[Scored]] = []
         self.corrections_ = {band: np.zeros_like(r) for band, r in res.items()}
         self.tried_ = 0
+        # the ladder's caches: each candidate's fit until an accepted term changes its motors' residual (a version
+        # per band and motor), and the residual's statistics
+        self._fits, self._stats_cache, self._masks = {}, {}, None
+        self._columns_cache, self._cache_used = {}, 0
+        self._versions = {band: np.zeros(rd.n, dtype=int) for band in res}
         tasks = [(t, j) for t in self.library for j in (range(rd.n) if t.per_joint else t.joints(rd))]
         taken = set()
         for step in range(self.max_terms):
@@ -244,10 +332,14 @@ class MismatchSearch:
             low = rd.lowpass(raw)
             res["low"] = res["low"] - low
             res["wide"] = res["wide"] - raw
+            for band in res:
+                self._versions[band][term.motors(rd, best.fitted.joint)] += 1
             self.corrections_["low"] += low
             self.corrections_["wide"] += raw
         self.final_ = {band: {"fit": _rms(r, m_fit), "select": _rms(r, m_sel), "holdout": _rms(r, m_rep)}
                        for band, r in res.items()}
+        for cache in ("_fits", "_stats_cache", "_masks", "_columns_cache"):   # arrays of the recording's size
+            self.__dict__.pop(cache, None)
         return self
 
     def _nested_check(self, scored: list[Scored]) -> None:

@@ -1,0 +1,76 @@
+"""The diagnosis' speed-ups change nothing it finds.
+
+* ``Term.grid_columns`` (every grid point's columns at once, on the fit rows: batched filtering, Cogging's and
+  Backlash's own versions) gives exactly the columns ``Term.band_columns`` gives one grid point at a time, for every
+  term of the library.
+* The search's caches (a candidate's fit kept until an accepted term changes its motors' residual; its weighted
+  columns kept across steps) give the same ladder, coefficients and gains as a search that keeps no columns.
+"""
+import json
+
+import numpy as np
+import pytest
+
+from fixtures_diag import clean_model, recording
+
+EFFECTS = [{"kind": "payload_change", "joints": [5], "mass": 0.3, "com": [0.05, 0.0, 0.0]},
+           {"kind": "stribeck", "joints": [1], "velocity": 4.0}]
+
+
+@pytest.fixture(scope="module")
+def rd():
+    from diagnosis.residual import residual_data
+    from js2spec.log import read_log
+    from js2spec.model import load_model
+
+    return residual_data(load_model(clean_model()), read_log(recording(json.dumps(EFFECTS))))
+
+
+def _some(grid):
+    """The first ten grid points in a row (Cogging's angle-addition rule over a refresh) and the last (the whole
+    grid is slow for the test)."""
+    return list(grid[:10]) + list(grid[-1:]) if len(grid) > 10 else list(grid)
+
+
+@pytest.mark.parametrize("j", [0, 4])
+def test_grid_columns_are_the_band_columns_of_every_term(rd, j):
+    from diagnosis.library import LIBRARY
+
+    rows_all = rd.mask & rd.fit_rows[:, None]
+    for term in LIBRARY:
+        if not term.per_joint and j not in term.joints(rd):
+            continue
+        motors = term.motors(rd, j)
+        rows = rows_all[:, motors]
+        grid = _some(term.grid(rd, j))
+        got = list(term.grid_columns(rd, j, grid, rows))
+        assert [h for h, _ in got] == grid, term.kind
+        for h, X in got:
+            want = term.band_columns(rd, j, h)[:, motors, :][rows]
+            assert X.shape == want.shape, (term.kind, h)
+            # equal to rounding: Cogging's sines by the angle-addition rule are a few ulp from np.sin's
+            np.testing.assert_allclose(X, want, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(want).max()),
+                                       err_msg=f"{term.kind} on joint {j}, grid point {h}")
+
+
+def test_search_caches_change_nothing(rd):
+    from diagnosis.search import MismatchSearch
+
+    cached = MismatchSearch().fit(rd)
+    plain = MismatchSearch()
+    plain.CACHE_BYTES = 0                    # no columns kept across steps: every step builds them again
+    plain.fit(rd)
+    assert [s.fitted.kind for s in cached.accepted_] == [s.fitted.kind for s in plain.accepted_]
+    assert cached.accepted_, "the recording conceals two effects: the search should accept at least one"
+    assert len(cached.rankings_) == len(plain.rankings_)
+    for step_c, step_p in zip(cached.rankings_, plain.rankings_):
+        assert [(s.fitted.kind, s.fitted.joint, s.fitted.hyper) for s in step_c] == \
+               [(s.fitted.kind, s.fitted.joint, s.fitted.hyper) for s in step_p]
+        for a, b in zip(step_c, step_p):
+            np.testing.assert_allclose(a.fitted.coef, b.fitted.coef, rtol=1e-9, atol=1e-15)
+            np.testing.assert_allclose([a.fit_gain, a.select_gain, a.select_gain_all, a.holdout_gain],
+                                       [b.fit_gain, b.select_gain, b.select_gain_all, b.holdout_gain],
+                                       rtol=1e-9, atol=1e-12)
+            assert a.rejected == b.rejected
+    for band in ("low", "wide"):
+        np.testing.assert_allclose(cached.predict(rd, band), plain.predict(rd, band), rtol=1e-9, atol=1e-15)
