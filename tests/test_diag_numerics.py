@@ -88,7 +88,8 @@ def test_breakaway_transient_marks_the_slow_samples_with_the_direction_the_axis_
     from diagnosis.library import BreakawayTransient
 
     w = np.array([5.0, 3.0, 1.0, 0.2, -0.1, -0.5, -3.0, -6.0, -1.5, 0.0, 0.3, 4.0])
-    rd = SimpleNamespace(n=2, dq_motor=np.stack([w, np.zeros_like(w)], axis=1), min_speed_motor=np.array([1.0, 1.0]))
+    rd = SimpleNamespace(n=2, dq_motor=np.stack([w, np.zeros_like(w)], axis=1), min_speed_motor=np.array([1.0, 1.0]),
+                         extra={})
     col = BreakawayTransient().columns(rd, 0, None)
     assert col.shape == (len(w), 2, 3)
     expect = np.array([0, 0, -1, -1, -1, -1, 0, 0, 1, 1, 1, 0], float)   # slow samples take the next fast one's sign
