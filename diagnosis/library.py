@@ -536,29 +536,36 @@ class AsymmetricFriction(Term):
                 f"Coulomb friction {f_pos:.4g} N*m turning forward, {f_neg:.4g} N*m backward", ok, why)
 
 
+def _rnea_derivatives(rd: ResidualData) -> None:
+    """d tau_rigid / d q and d tau_rigid / d q_dot (joint side, (N, n, n) each): pinocchio's analytic RNEA
+    derivatives (computeRNEADerivatives), all joints in one pass over the samples, cached per recording
+    (``rd.extra["dtau_dq"]``, ``rd.extra["dtau_dv"]``)."""
+    if "dtau_dq" in rd.extra and "dtau_dv" in rd.extra:
+        return
+    arm = rd.arm
+    model, data = arm.model, arm.model.createData()
+    K = rd.K
+    q = np.nan_to_num(rd.q_joint)
+    dq = np.nan_to_num(rd.dq_motor) @ K.T
+    ddq = np.nan_to_num(rd.ddq_motor) @ K.T
+    iv = arm.idx_v
+    Dq = np.zeros((len(q), rd.n, rd.n))
+    Dv = np.zeros((len(q), rd.n, rd.n))
+    qp, vp, ap = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
+    for s in range(len(q)):
+        qp[iv], vp[iv], ap[iv] = q[s], dq[s], ddq[s]
+        dq_s, dv_s, _ = pin.computeRNEADerivatives(model, data, qp, vp, ap)
+        Dq[s] = dq_s[np.ix_(iv, iv)]
+        Dv[s] = dv_s[np.ix_(iv, iv)]
+    rd.extra.setdefault("dtau_dq", Dq)
+    rd.extra.setdefault("dtau_dv", Dv)
+
+
 def _rnea_dq(rd: ResidualData, j: int) -> np.ndarray:
-    """d tau_rigid / d q_j (joint side, (N, n)): pinocchio's analytic RNEA derivatives (computeRNEADerivatives), all
-    joints in one pass over the samples, cached per recording."""
-    D = rd.extra.get("dtau_dq")
-    if D is None:
-        arm = rd.arm
-        model, data = arm.model, arm.model.createData()
-        K = rd.K
-        q = np.nan_to_num(rd.q_joint)
-        dq = np.nan_to_num(rd.dq_motor) @ K.T
-        ddq = np.nan_to_num(rd.ddq_motor) @ K.T
-        iv = arm.idx_v
-        D = np.zeros((len(q), rd.n, rd.n))
-        qp = pin.neutral(model)
-        vp = np.zeros(model.nv)
-        ap = np.zeros(model.nv)
-        for s in range(len(q)):
-            qp[iv] = q[s]
-            vp[iv] = dq[s]
-            ap[iv] = ddq[s]
-            D[s] = pin.computeRNEADerivatives(model, data, qp, vp, ap)[0][np.ix_(iv, iv)]
-        rd.extra["dtau_dq"] = D
-    return D[:, :, j]
+    """d tau_rigid / d q_j (joint side, (N, n)), from :func:`_rnea_derivatives`."""
+    if "dtau_dq" not in rd.extra:
+        _rnea_derivatives(rd)
+    return rd.extra["dtau_dq"][:, :, j]
 
 
 def _mass_column(rd: ResidualData, j: int) -> np.ndarray:
@@ -768,28 +775,10 @@ class Backlash(_Compliance):
 
 # --- gear matrix error --------------------------------------------------------------------------------------------
 def _rnea_dv(rd: ResidualData, j: int) -> np.ndarray:
-    """d tau_rigid / d q_dot_j (joint side, (N, n)): pinocchio's analytic RNEA derivatives, one pass over the samples
-    (it also fills :func:`_rnea_dq`'s cache, the same call gives both), cached per recording."""
-    D = rd.extra.get("dtau_dv")
-    if D is None:
-        arm = rd.arm
-        model, data = arm.model, arm.model.createData()
-        K = rd.K
-        q = np.nan_to_num(rd.q_joint)
-        dq = np.nan_to_num(rd.dq_motor) @ K.T
-        ddq = np.nan_to_num(rd.ddq_motor) @ K.T
-        iv = arm.idx_v
-        Dq = np.zeros((len(q), rd.n, rd.n))
-        D = np.zeros((len(q), rd.n, rd.n))
-        qp, vp, ap = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
-        for s in range(len(q)):
-            qp[iv], vp[iv], ap[iv] = q[s], dq[s], ddq[s]
-            dq_s, dv_s, _ = pin.computeRNEADerivatives(model, data, qp, vp, ap)
-            Dq[s] = dq_s[np.ix_(iv, iv)]
-            D[s] = dv_s[np.ix_(iv, iv)]
-        rd.extra["dtau_dv"] = D
-        rd.extra.setdefault("dtau_dq", Dq)
-    return D[:, :, j]
+    """d tau_rigid / d q_dot_j (joint side, (N, n)), from :func:`_rnea_derivatives`."""
+    if "dtau_dv" not in rd.extra:
+        _rnea_derivatives(rd)
+    return rd.extra["dtau_dv"][:, :, j]
 
 
 class Coupling(Term):

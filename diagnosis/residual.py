@@ -189,14 +189,13 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
     """Predict the recording with the model, on the motor side, and split it into fit, select and report rows
     (:func:`split_rows`). ``min_speed``: rad/s at the joint; motor i's threshold is min_speed / max_j |K_ji|."""
     drives = log.drives
-    if list(model.joints) != list(drives.joints):
-        raise DiagnosisError(f"{model.path}: model joints {model.joints} do not match the log's joints "
-                             f"{drives.joints} ({log.path}); diagnose a recording of the arm the model describes")
     side = str(drives.torque_side)
-    model_side = str(model.raw.get("torque_side", side))
-    if model_side != side:
-        raise DiagnosisError(f"{log.path}: torque_side is {side!r} but {model.path} was identified on the "
-                             f"{model_side!r} side; identify the model from recordings with {side}-side torques")
+    problem = model.recording_mismatch(drives)
+    if problem is not None:
+        what, text = problem
+        advice = ("diagnose a recording of the arm the model describes" if what == "joints" else
+                  f"identify the model from recordings with {side}-side torques")
+        raise DiagnosisError(f"{log.path}: {text} ({model.path}); {advice}")
     arm = arm_model(model.urdf_text, drives, urdf_name=str(model.urdf_path))
     sig = from_log(log, settings or model_cutoffs(float(log.cycle_hz), model))
     N, n = sig.q_motor.shape

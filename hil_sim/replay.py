@@ -346,14 +346,13 @@ def replay_recording(recording, model_path, effects_path=None, min_speed: float 
     model = load_model(model_path)
     log = read_log(recording)
     drives = log.drives
-    if list(model.joints) != list(drives.joints):
-        raise ReplayError(f"{recording}: the recording's joints {list(drives.joints)} are not the model's "
-                          f"{model.joints} ({model.path}); replay a recording of the arm the model describes")
-    side = str(drives.torque_side)
-    model_side = str(model.raw.get("torque_side", side))
-    if model_side != side:
-        raise ReplayError(f"{recording}: torque_side is {side!r} but {model.path} was identified on the "
-                          f"{model_side!r} side; replay a recording with {model_side}-side torques")
+    problem = model.recording_mismatch(drives)
+    if problem is not None:
+        what, text = problem
+        model_side = str(model.raw.get("torque_side", drives.torque_side))
+        advice = ("replay a recording of the arm the model describes" if what == "joints" else
+                  f"replay a recording with {model_side}-side torques")
+        raise ReplayError(f"{recording}: {text} ({model.path}); {advice}")
     notes: list[str] = []
     effects = []
     if effects_path is not None:

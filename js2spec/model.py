@@ -44,6 +44,19 @@ class IdentifiedModel:
         from .files import read_text
         return read_text(self.urdf_path, "identified URDF")
 
+    def recording_mismatch(self, drives) -> tuple[str, str] | None:
+        """Why a recording with these ``drives`` (``drives.yaml`` of a js2 log) cannot be compared with this model,
+        or None: ``("joints", text)`` when its joints are not the model's, ``("torque_side", text)`` when it
+        measured torque on the other side of the gears than the model was identified on. The text names both
+        sides; each caller adds its own advice and error class (diagnosis, replay)."""
+        if list(self.joints) != list(drives.joints):
+            return "joints", f"the recording's joints {list(drives.joints)} are not the model's {list(self.joints)}"
+        side = str(drives.torque_side)
+        model_side = str(self.raw.get("torque_side", side))
+        if model_side != side:
+            return "torque_side", f"torque_side is {side!r} but {self.path} was identified on the {model_side!r} side"
+        return None
+
     @property
     def torque_offset(self) -> np.ndarray:
         """Constant torque offsets (N*m, on the model's torque side) of the exported model: ``torque_offset`` of

@@ -96,3 +96,22 @@ def test_breakaway_transient_marks_the_slow_samples_with_the_direction_the_axis_
     assert np.array_equal(col[:, 0, 0], expect)
     assert np.array_equal(col[:, 0, 1], w) and np.array_equal(col[:, 0, 2], np.sign(w))
     assert not col[:, 1].any()                                            # only its own motor
+
+
+def test_model_says_why_a_recording_does_not_fit_it():
+    """One check for the diagnosis and the replay (each raises its own error with its own advice): the joints must be
+    the model's, the torque measured on the side the model was identified on."""
+    from pathlib import Path
+
+    from js2spec.model import IdentifiedModel
+
+    z = np.zeros(2)
+    model = IdentifiedModel(path=Path("m/model.yaml"), joints=["j1", "j2"], friction_static=z, friction_coulomb=z,
+                            friction_viscous=z, motor_inertia=z, base_names=[], base_values=z, base_std=z,
+                            urdf_path=None, raw={"torque_side": "joint"})
+    same = SimpleNamespace(joints=["j1", "j2"], torque_side="joint")
+    assert model.recording_mismatch(same) is None
+    what, text = model.recording_mismatch(SimpleNamespace(joints=["a1", "a2"], torque_side="joint"))
+    assert what == "joints" and "a1" in text and "j1" in text
+    what, text = model.recording_mismatch(SimpleNamespace(joints=["j1", "j2"], torque_side="motor"))
+    assert what == "torque_side" and "'motor'" in text and "'joint'" in text
