@@ -23,7 +23,7 @@ coefficient of a present effect is positive.
 | asymmetric_friction | [w_i > 0], -[w_i < 0] | f_c+ - f_c, f_c- - f_c -> negative_scale |
 | joint_elasticity | -K^T (d tau/d q_j tau_j + M e_j d2 tau_j/dt2) (the link lags by tau_j/k) | 1/k (rad/(N*m)) -> stiffness k |
 | backlash | K^T e_j (tau_s - tau_r): the link simulated behind the measured gear motion on a spring with a dead zone of width b | width b, contact stiffness k, damping d (grid) |
-| coupling | K^T e_i tau_j; K^T (d tau/d q_j q_i + d tau/d q_d_j q_d_i + M e_j q_dd_i); i on a grid (neighbours, K-coupled) | both paths alike (2:1) -> coefficient c (rad/rad), from_joint = i |
+| coupling | K^T e_i tau_j; K^T (d tau/d q_j q_i + d tau/d q_d_j q_d_i + M e_j q_dd_i); i on a grid (neighbours, K-coupled) | both paths significant and within 20 % -> coefficient c (rad/rad), from_joint = i |
 
 w = motor speed, theta = motor angle, tau_rigid = M(q) q_dd + h + g of the model (joint side), H_tau a first-order
 low-pass with time constant tau (the winding's thermal lag).
@@ -148,6 +148,12 @@ def _moving(rd: ResidualData, i: int) -> np.ndarray:
     return cache[i]
 
 
+def _slow_speed(rd: ResidualData, j: int) -> float:
+    """Motor j's slowest friction speed, rad/s at the motor: twice its --min-speed threshold. Stribeck's lowest v_s
+    and the speed below which :class:`BreakawayTransient` counts a sample as near rest (its null) — one number."""
+    return 2.0 * float(rd.min_speed_motor[j]) if rd.min_speed_motor is not None else 2.0
+
+
 def _sgn(x):
     return np.sign(x)
 
@@ -186,8 +192,7 @@ class BreakawayTransient(Term):
 
     def columns(self, rd, j, h):
         w = _moving(rd, j)
-        lo = 2.0 * float(rd.min_speed_motor[j]) if rd.min_speed_motor is not None else 2.0
-        slow = np.abs(w) < lo
+        slow = np.abs(w) < _slow_speed(rd, j)
         # the direction of the next fast sample (where it breaks away to): fill backwards from each moving sample
         idx = np.where(~slow, np.arange(len(w)), len(w))
         nxt = np.minimum.accumulate(idx[::-1])[::-1]
@@ -236,7 +241,7 @@ class Stribeck(Term):
     def grid(self, rd, j):
         """v_s from 2x the motor's --min-speed threshold to 60x; a best fit at the lowest is refused (what it fits is
         the friction step at reversals that the torque filter smears, not a Stribeck curve)."""
-        lo = 2.0 * float(rd.min_speed_motor[j]) if rd.min_speed_motor is not None else 2.0
+        lo = _slow_speed(rd, j)
         return [(float(v), d) for v in np.geomspace(lo, 30 * lo, 13) for d in STRIBECK_SHAPES]
 
     def columns(self, rd, j, h):
@@ -568,6 +573,13 @@ def _rnea_dq(rd: ResidualData, j: int) -> np.ndarray:
     return rd.extra["dtau_dq"][:, :, j]
 
 
+def _rnea_dv(rd: ResidualData, j: int) -> np.ndarray:
+    """d tau_rigid / d q_dot_j (joint side, (N, n)), from :func:`_rnea_derivatives`."""
+    if "dtau_dv" not in rd.extra:
+        _rnea_derivatives(rd)
+    return rd.extra["dtau_dv"][:, :, j]
+
+
 def _mass_column(rd: ResidualData, j: int) -> np.ndarray:
     """M(q) e_j (joint side, (N, n)); M(q) by pinocchio CRBA, computed once per recording."""
     M_all = rd.extra.get("M")
@@ -774,13 +786,6 @@ class Backlash(_Compliance):
 
 
 # --- gear matrix error --------------------------------------------------------------------------------------------
-def _rnea_dv(rd: ResidualData, j: int) -> np.ndarray:
-    """d tau_rigid / d q_dot_j (joint side, (N, n)), from :func:`_rnea_derivatives`."""
-    if "dtau_dv" not in rd.extra:
-        _rnea_derivatives(rd)
-    return rd.extra["dtau_dv"][:, :, j]
-
-
 class Coupling(Term):
     """A gear matrix error (hil_sim's ``coupling``): the arm's joint-from-motor matrix is K_true = (I + c e_j e_i^T) K,
     joint j turning c rad more per rad of joint i (hyper-parameter i, ``from_joint``) than the model's K says. To first

@@ -346,15 +346,11 @@ class MismatchSearch:
         """The data's own null: a term that contains a simpler one (``Term.extends``) must cut what the simpler one
         leaves on the select rows of its motors by ``Term.margin``, or it is not plausible (the simpler physics,
         or a plain refit of the model, explains the data as well)."""
-        by_key = {}              # the best of each simpler kind per joint, in the band the term is compared in
-        for s in scored:
-            key = (s.fitted.kind, s.fitted.joint, s.band)
-            if key not in by_key or s.select_gain > by_key[key].select_gain:
-                by_key[key] = s
+        by_key = {(s.fitted.kind, s.fitted.joint): s for s in scored}
         for s in scored:
             term = s.term
             for simpler_kind in term.extends:
-                simpler = by_key.get((simpler_kind, s.fitted.joint, s.band))
+                simpler = by_key.get((simpler_kind, s.fitted.joint))
                 if simpler is None or not s.fitted.plausible:
                     continue
                 left = (1 - s.select_gain) / max(1 - simpler.select_gain, 1e-12)
