@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hil_sim.replay import forward_replay, inverse_replay, model_offsets, model_plant, rms_per_joint
+from hil_sim.replay import forward_replay, inverse_replay, model_plant, rms_per_joint
 from js2spec.effects import EFFECT_KINDS
 
 from .run import DiagnosisResult
@@ -26,7 +26,7 @@ def replay_torques(res: DiagnosisResult, effects: list[dict]) -> np.ndarray:
     drives = _drives(res)
     plant = model_plant(res.model, drives, effects, effects_source="diagnosis findings")
     tau = inverse_replay(plant, rd.t, rd.q_motor, rd.dq_motor, rd.ddq_motor).tau_motor
-    off = model_offsets(res.model)
+    off = res.model.torque_offset
     tau = tau + (off @ rd.K if rd.torque_side == "joint" else off)      # offsets on the log's side -> motor side
     return rd.signals.filter_like_torque(np.nan_to_num(tau))
 
@@ -36,7 +36,7 @@ def forward_positions(res: DiagnosisResult, effects: list[dict], bandwidth_hz: f
     removed) plus a tracking term at ``bandwidth_hz``; returns (simulated motor angles (N, n), tracking torque)."""
     rd = res.rd
     plant = model_plant(res.model, _drives(res), effects, effects_source="diagnosis findings")
-    off = model_offsets(res.model)
+    off = res.model.torque_offset
     tau = rd.tau_meas - (off @ rd.K if rd.torque_side == "joint" else off)
     fr = forward_replay(plant, rd.t, rd.q_motor, rd.dq_motor, tau, runs=rd.signals.runs, bandwidth_hz=bandwidth_hz)
     return fr.q_motor, fr.tau_pd

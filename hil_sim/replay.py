@@ -75,12 +75,6 @@ def model_motor_side(model, drives) -> dict:
     return {"motor_inertia": ja, "viscous": b, "coulomb": fc, "static": np.maximum(fs, fc)}
 
 
-def model_offsets(model) -> np.ndarray:
-    """Constant torque offsets of the exported model (``IdentifiedModel.torque_offset``: model.yaml's
-    ``torque_offset``, else the base ``off_<k>``), on the recording's torque side."""
-    return model.torque_offset
-
-
 def model_plant(model, drives, effects=None, effects_source=None) -> Plant:
     """The identified model as a :class:`Plant`: its URDF (``<dynamics>`` tags dropped: the model's friction replaces
     them), ``J_a``, ``B``, ``f_c``, ``f_s`` of ``model.yaml``, no sensor noise, plus ``effects`` (config list)."""
@@ -360,7 +354,7 @@ def replay_recording(recording, model_path, effects_path=None, min_speed: float 
     sig = recording_motion(log, model)
     K = np.asarray(drives.gear_ratio_matrix, float)
     sig.extra["K"] = K
-    off = model_offsets(model)
+    off = model.torque_offset
     tau_rec_motor = to_motor_side(sig.tau, drives, off)
     runs, fwd = [], []
     for eff in ([[]] + ([effects] if effects_path is not None else [])):
@@ -398,8 +392,8 @@ def write_replay_log(rep: RecordingReplay, recording, model_path, out, effects_p
     fs = sig.fs
     if mode == "forward":
         fr = rep.forward[-1]
-        tau_raw = to_log_side(to_motor_side(sig.tau, drives, model_offsets(model)) + fr.tau_pd, drives,
-                              model_offsets(model))
+        tau_raw = to_log_side(to_motor_side(sig.tau, drives, model.torque_offset) + fr.tau_pd, drives,
+                              model.torque_offset)
         q_out = fr.q_motor
     else:
         tau_raw, q_out = rep.tau_effects_raw, sig.q_motor_raw
