@@ -151,7 +151,13 @@ def param_errors(true: dict, found: dict) -> dict:
     return out
 
 
-MIN_VISIBLE = 0.12   # the diagnosis' own acceptance floor (MismatchSearch.min_gain): gain on the term's motors
+def _min_gain() -> float:
+    from diagnosis.run import DiagnoseOptions
+
+    return DiagnoseOptions.min_gain
+
+
+MIN_VISIBLE = _min_gain()   # the diagnosis' own acceptance floor (--min-gain's default): gain on the term's motors
 
 
 def visibility(rec: Path, model: Path, effects: list[dict], out: Path) -> list[float]:
@@ -189,15 +195,14 @@ def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bo
     from diagnosis.run import diagnose
 
     res_path = out / f"case_{case['seed']:03d}.json"
+    rec = out / "runs" / f"case_{case['seed']:03d}.mcap"
     if res_path.is_file() and not rediagnose:
         row = json.loads(res_path.read_text())
-        rec = out / "runs" / f"case_{case['seed']:03d}.mcap"
         if row.get("case") == json.loads(json.dumps(case)):
             if "visibility" not in row and rec.is_file():          # a result from before the column: add it
                 row["visibility"] = visibility(rec, model, case["effects"], out)
                 res_path.write_text(json.dumps(row, default=float))
             return row
-    rec = out / "runs" / f"case_{case['seed']:03d}.mcap"
     rec.parent.mkdir(parents=True, exist_ok=True)
     sim_s = None
     if not rec.is_file():
@@ -237,6 +242,7 @@ def score(rows: list[dict]) -> dict:
     hits = total = clean_ok = clean = 0
     vis_hits = vis_total = 0
     hidden = []                          # (case, kind, joint, visibility, found) of effects below MIN_VISIBLE
+    missed = []                          # (case, rate, kind, joint, visibility, named there) of visible misses
     errors = {k: [] for k in ALL_KINDS}
     wrong_source = 0
     for row in rows:
@@ -261,6 +267,9 @@ def score(rows: list[dict]) -> dict:
             if visible(v):
                 vis_total += 1
                 vis_hits += f is not None
+                if f is None:
+                    missed.append((row["seed"], row.get("cycle_hz") or 500, e["kind"], j, v,
+                                   [g["kind"] for g in row["named"] if g["joint"] == j]))
             else:
                 hidden.append((row["seed"], e["kind"], j, v, f is not None))
             if f is not None:
@@ -278,6 +287,7 @@ def score(rows: list[dict]) -> dict:
             "effect_rate": hits / total if total else float("nan"),
             "visible_found": vis_hits, "visible": vis_total,
             "visible_rate": vis_hits / vis_total if vis_total else float("nan"), "below_floor": hidden,
+            "visible_missed": missed,
             "clean_none": clean_ok, "clean": clean,
             "clean_rate": clean_ok / clean if clean else float("nan"), "param_errors": errors}
 
@@ -319,15 +329,10 @@ def print_report(s: dict, rows: list[dict]) -> None:
     for seed, kind, j, v, found in s["below_floor"]:
         print(f"  below the floor: case {seed:3d} {kind} on joint {j}: the exact effect removes {v:.1%} "
               f"({'named anyway' if found else 'not named'})")
-    for row in rows:                      # the misses the residual does show, with what was named instead
-        named = {_key(f["effect"], f["joint"]) for f in row["named"]}
-        for e, v in zip(row["effects"], row.get("visibility") or [None] * len(row["effects"])):
-            j = e["joints"][0]
-            if visible(v) and _key(e, j) not in named:
-                on_j = [g["kind"] for g in row["named"] if g["joint"] == j]
-                print(f"  missed: case {row['seed']:3d} ({row.get('cycle_hz') or 500:g} Hz) {e['kind']} on joint {j}"
-                      + (f", the exact effect removes {v:.0%}" if v is not None else "")
-                      + f"; named there: {', '.join(on_j) or 'nothing'}")
+    for seed, rate, kind, j, v, on_j in s["visible_missed"]:     # the misses the residual does show
+        print(f"  missed: case {seed:3d} ({rate:g} Hz) {kind} on joint {j}"
+              + (f", the exact effect removes {v:.0%}" if v is not None else "")
+              + f"; named there: {', '.join(on_j) or 'nothing'}")
     for kind, errs in s["param_errors"].items():
         by = {}
         for e in errs:
