@@ -18,7 +18,7 @@ coefficient of a present effect is positive.
 | stribeck | [w_i > 0] exp(-(|w_i|/v_s)^delta), -[w_i < 0] exp(...) | f_s - f_c (N*m) per direction (both > 0, within 2:1); velocity = v_s (rad/s motor), shape delta = 2 |
 | cogging | sin(p theta_i), cos(p theta_i) per direction of turning, in the torque band and unfiltered | amplitude, phase (both directions agree); periods_per_rev = p |
 | payload_change | K^T Y_link_j[m, mx, my, mz], any link j | mass (kg), com = (m c)/m (m, frame of link j) |
-| thermal_drift | H_tau(I_i^2) (B w_i + f_c sgn w_i), w_i, sgn w_i | friction_per_kelvin with heating 1 K/A^2; time_constant = tau |
+| thermal_drift | H_tau(P_i) (B w_i + f_c sgn w_i), w_i, sgn w_i; heat source P_i = I_i^2 or the friction power abs(f_i w_i) (grid) | friction_per_kelvin with heating (or friction_power_heating) 1; time_constant = tau |
 | load_dependent_friction | sgn(w_i) |(K^T tau_rigid)_i| | coefficient mu (-) |
 | asymmetric_friction | [w_i > 0], -[w_i < 0] | f_c+ - f_c, f_c- - f_c -> negative_scale |
 | joint_elasticity | -K^T (d tau/d q_j tau_j + M e_j d2 tau_j/dt2) (the link lags by tau_j/k) | 1/k (rad/(N*m)) -> stiffness k |
@@ -443,35 +443,59 @@ class PayloadChange(Term):
 
 
 class ThermalDrift(Term):
-    """Friction scaled by the winding's temperature rise, a first-order lag of I^2 (time constant on a grid), plus the
+    """Friction scaled by a temperature rise, a first-order lag of a heat source (time constant on a grid), plus the
     plain refit it contains ([heat * (B w + f_c sgn w), w, sgn w]): it must explain the drift's time course, not its
-    mean level (which a refit of the model's friction explains as well) — by a quarter of what the refit leaves, like the other friction terms."""
-    kind, hyper_name, extends = "thermal_drift", "time_constant", ("friction_refit",)
+    mean level (which a refit of the model's friction explains as well) — by a quarter of what the refit leaves, like
+    the other friction terms. Two heat sources, both on the grid: the winding's copper losses I^2 and the friction
+    power |f w| (the gear and bearings warming; f the model's friction along the recorded speed)."""
+    kind, hyper_name, extends = "thermal_drift", "(time_constant, source)", ("friction_refit",)
     margin = 0.25
+    SOURCES = ("current_squared", "friction_power")
 
     def grid(self, rd, j):
-        """Time constants from 10 s to 4x the recording's span, 12 per decade (a continuous time constant to 10 %).
-        A winding's thermal lag is slower than the motion: a lag of a few seconds follows the load cycle itself (a
-        load-dependent friction, not a drift) — with 3 s on the grid a clean real KUKA recording got a drift named."""
+        """Time constants from 10 s to 4x the recording's span, 12 per decade (a continuous time constant to 10 %),
+        for each heat source. A thermal lag is slower than the motion: a lag of a few seconds follows the load
+        cycle itself (a load-dependent friction, not a drift) — with 3 s on the grid a clean real KUKA recording got
+        a drift named."""
         span = float(rd.t[-1] - rd.t[0])
         top = max(4 * span, 12.0)
-        return [float(tc) for tc in np.geomspace(10.0, top, max(2, int(np.ceil(12 * np.log10(top / 10.0))) + 1))]
+        taus = np.geomspace(10.0, top, max(2, int(np.ceil(12 * np.log10(top / 10.0))) + 1))
+        return [(float(tc), src) for src in self.SOURCES for tc in taus]
+
+    def heat_input(self, rd, j, source: str) -> np.ndarray:
+        """The heat source's signal per sample, both as measured: I^2 (A^2), or the friction power |f w| (W) with f
+        the friction the recording shows at the motor (measured torque less the model's rigid-body part, in the
+        torque band), so that a friction which grows as it warms heats faster, as it does on the arm (with the
+        model's friction instead, a drift with p alpha |f w| = 0.5 was fitted with twice its time constant)."""
+        if source == "current_squared":
+            return np.nan_to_num(rd.motor_current[:, j]) ** 2
+        excess = rd.tau_meas[:, j] - rd.tau_pred[:, j]
+        friction = np.nan_to_num(rd.friction_pred[:, j]) + np.where(np.isfinite(excess), excess, 0.0)
+        return np.abs(friction * _moving(rd, j))
 
     def columns(self, rd, j, h):
-        i2 = np.nan_to_num(rd.motor_current[:, j]) ** 2
-        a = np.exp(-1.0 / (rd.fs * h))
-        heat = lfilter([1 - a], [1, -a], i2)          # K per (K/A^2): the temperature rise with heating = 1
-        col = np.zeros((len(i2), rd.n, 3))
+        tc, source = h
+        a = np.exp(-1.0 / (rd.fs * tc))
+        heat = lfilter([1 - a], [1, -a], self.heat_input(rd, j, source))   # K with a heating of 1 (K/A^2, K/W)
+        col = np.zeros((len(rd.t), rd.n, 3))
         col[:, j, 0] = heat * np.nan_to_num(rd.friction_pred[:, j])
         col[:, j, 1:] = FrictionRefit().columns(rd, j, None)[:, j, :]   # nested: contains the plain refit
         return col
 
     def effect(self, rd, j, h, coef, std):
+        tc, source = h
         ok = abs(coef[0]) > 3 * std[0]
-        return ({"kind": self.kind, "joints": [j], "heating": 1.0, "time_constant": float(h),
-                 "friction_per_kelvin": float(coef[0])},
-                f"friction changes by {coef[0]:+.3g} per A^2 of (first-order, {h:g} s) heating: it drifts as the "
-                f"motor warms", ok, "" if ok else "drift not significant")
+        copper = source == "current_squared"
+        eff = {"kind": self.kind, "joints": [j], "heating": 1.0 if copper else 0.0, "time_constant": float(tc),
+               "friction_per_kelvin": float(coef[0])}
+        if not copper:
+            eff["friction_power_heating"] = 1.0
+        per = "A^2 of" if copper else "W of friction power in"
+        slowest = tc >= self.grid(rd, j)[-1][0] * 0.9999
+        lag = (f"a lag of at least {tc:.3g} s, the slowest tried: the time constant is not resolved (a ramp over "
+               f"the recording)" if slowest else f"first-order, {tc:.3g} s")
+        return (eff, f"friction changes by {coef[0]:+.3g} per {per} ({lag}) heating: it drifts as the "
+                     f"{'winding' if copper else 'drive train'} warms", ok, "" if ok else "drift not significant")
 
 
 class LoadDependentFriction(Term):

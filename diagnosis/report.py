@@ -101,6 +101,8 @@ def fig_finding(res: DiagnosisResult, k: int):
 def _g(x, p=3):
     if isinstance(x, (list, tuple)):
         return ", ".join(_g(v, p) for v in x)
+    if isinstance(x, str):                  # a named hyper-parameter value (thermal_drift's heat source)
+        return x
     return "–" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{p}g}"
 
 

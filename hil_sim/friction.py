@@ -37,6 +37,7 @@ class Friction:
         self.thermal_time_constant = np.ones(n)
         self.thermal_alpha = np.zeros(n)
         self.thermal_initial = np.zeros(n)
+        self.thermal_power_heating = np.zeros(n)     # K/W of friction power
         self.has_stribeck = self.has_load = self.has_thermal = self.has_asym = False
         for e in effects:
             j = list(e.joints)
@@ -57,6 +58,7 @@ class Friction:
                 self.thermal_time_constant[j] = e["time_constant"]
                 self.thermal_alpha[j] = e["friction_per_kelvin"]
                 self.thermal_initial[j] = e["initial_rise"]
+                self.thermal_power_heating[j] = e["friction_power_heating"]
                 self.has_thermal = True
         self.stribeck_axes = np.flatnonzero(np.isfinite(self.stribeck_velocity))
         #: axes with any dry friction: they can stick and their velocity sign matters
@@ -67,6 +69,11 @@ class Friction:
     def scale(self, temperature_rise: np.ndarray) -> np.ndarray:
         """Thermal friction scale ``max(0, 1 + alpha dT)`` per axis (``thermal_drift``)."""
         return np.maximum(0.0, 1.0 + self.thermal_alpha * temperature_rise)
+
+    def heat_target(self, current, friction, velocity) -> np.ndarray:
+        """Steady-state temperature rise for a held current (A), friction torque (N*m) and motor velocity (rad/s):
+        ``heating I^2 + friction_power_heating |f w|`` (``thermal_drift``, K)."""
+        return self.thermal_heating * current ** 2 + self.thermal_power_heating * np.abs(friction * velocity)
 
     def levels(self, direction, scale=None, load=None):
         """``(f_c(d), f_s(d))`` per axis for directions ``d`` (sign arrays; 0 counts as +)."""

@@ -478,9 +478,12 @@ class Plant:
                 self._substep(h, tau_net)
         self._t += duration
         if fr.has_thermal:
-            # first-order winding temperature, exact for the held current: dT' = (heating I^2 - dT) / tau_th
+            # first-order temperature, exact for the held current and friction power:
+            # dT' = (heating I^2 + friction_power_heating |f w| - dT) / tau_th, f w at the step's end
             current = tau / self.sensors.torque_constant
-            target = fr.thermal_heating * current ** 2
+            velocity = self._zd[: self.n]
+            friction = fr.sliding(velocity, self._sign, self._fc, self._fs, self._scale)
+            target = fr.heat_target(current, friction, velocity)
             decay = np.exp(-duration / fr.thermal_time_constant)
             self._temperature_rise = target + (self._temperature_rise - target) * decay
             self._refresh_levels()

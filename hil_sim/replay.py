@@ -158,13 +158,14 @@ def inverse_replay(plant: Plant, t, q_motor, dq_motor, ddq_motor) -> InverseRepl
             tau_drive = d.inverse_dynamics(qm, dqm, ddqm)
         load = tau_drive - ja * ddqm                      # what the gears transmit to the links
         if fr.has_thermal and dt > 0 and s > 0 and np.all(np.isfinite(out[s - 1])):
-            current = out[s - 1] / kt                      # the plant's rule: first-order, the held current
-            target = fr.thermal_heating * current ** 2
+            current = out[s - 1] / kt                      # the plant's rule: first-order, the held current and
+            target = fr.heat_target(current, friction_prev, dq_motor[s - 1])     # friction power
             temp = target + (temp - target) * np.exp(-dt / fr.thermal_time_constant)
         scale = fr.scale(temp) if fr.has_thermal else None
         sign = np.sign(dqm) * fr.active
         fc, fs = fr.levels(sign, scale, load if fr.has_load else None)
-        tau = tau_drive + fr.sliding(dqm, sign, fc, fs, scale)
+        friction_prev = fr.sliding(dqm, sign, fc, fs, scale)
+        tau = tau_drive + friction_prev
         if plant.has_cogging:
             k = plant.cog_axes
             tau[k] -= plant.cog_amp * np.sin(plant.cog_periods * qm[k] + plant.cog_phase)

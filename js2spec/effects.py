@@ -96,12 +96,15 @@ EFFECT_KINDS: dict[str, Kind] = {k.name: k for k in (
         "a point mass (plus inertia) added to the link moved by the joint; gravity torque changes by m g r",
         default_joint="last"),
     Kind("thermal_drift", (
-        Param("heating", "K/A^2", "nonneg", REQUIRED, "steady-state winding temperature rise per squared current"),
-        Param("time_constant", "s", "pos", REQUIRED, "winding thermal time constant"),
+        Param("heating", "K/A^2", "nonneg", 0.0, "steady-state temperature rise per squared current (copper losses)"),
+        Param("time_constant", "s", "pos", REQUIRED, "thermal time constant"),
         Param("friction_per_kelvin", "1/K", "any", REQUIRED, "relative friction change alpha per kelvin"),
-        Param("initial_rise", "K", "nonneg", 0.0, "temperature rise at the start")),
-        "first-order winding temperature rise dT/dt = (heating I^2 - dT)/time_constant, I the motor current; "
-        "B, f_c, f_s are scaled by max(0, 1 + alpha dT)"),
+        Param("initial_rise", "K", "nonneg", 0.0, "temperature rise at the start"),
+        Param("friction_power_heating", "K/W", "nonneg", 0.0, "steady-state temperature rise per watt of friction "
+                                                               "power |f w| (the gear and bearings warming)",
+              "motor side")),
+        "first-order temperature rise dT/dt = (heating I^2 + friction_power_heating |f w| - dT)/time_constant, I the "
+        "motor current, f w the friction power at the motor; B, f_c, f_s are scaled by max(0, 1 + alpha dT)"),
     Kind("load_dependent_friction", (
         Param("coefficient", "-", "nonneg", REQUIRED, "mu: N*m of friction per N*m of transmitted load"),),
         "f_c and f_s grow by mu |tau_load|, tau_load the motor-side torque the gear transmits to the links "

@@ -22,7 +22,8 @@ CASES = [
     ("stribeck", 1, {"velocity": 4.0}),
     ("cogging", 2, {"amplitude": 0.004, "periods_per_rev": 2}),
     ("payload_change", 5, {"mass": 0.3, "com": [0.05, 0.0, 0.0]}),
-    ("thermal_drift", 0, {"heating": 5.0, "time_constant": 15.0, "friction_per_kelvin": 0.01}),
+    ("thermal_drift", 0, {"heating": 5.0, "time_constant": 15.0, "friction_per_kelvin": 0.05}),
+    ("thermal_drift", 0, {"friction_power_heating": 5.0, "time_constant": 20.0, "friction_per_kelvin": 0.05}),
     ("load_dependent_friction", 1, {"coefficient": 0.15}),
     ("asymmetric_friction", 0, {"negative_scale": 1.5}),
     ("joint_elasticity", 1, {"stiffness": 1500.0, "damping": 3.0}),
@@ -71,19 +72,20 @@ def main(argv=None) -> int:
         if args.kinds and kind not in args.kinds:
             continue
         eff = [] if joint is None else [{"kind": kind, "joints": [joint], **params}]
-        rec = out / f"recording_{kind}.mcap"
+        label = kind + ("_friction_power" if "friction_power_heating" in params else "")
+        rec = out / f"recording_{label}.mcap"
         if not rec.is_file():
             record(robot, rec, ["excitation", "validation"], eff, args.seed)
         t1 = time.time()
         res = diagnose(model, rec)
-        write_outputs(res, out / f"diagnosis_{kind}")
+        write_outputs(res, out / f"diagnosis_{label}")
         found = res.findings()[0] if res.findings() else None
         motor = None if found is None else found["effect"]["joints"][0]
         if found is not None and found["kind"] == "payload_change":
             motor = max(range(robot.drives.n),
                         key=lambda i: found["holdout_rms_before"][i] - found["holdout_rms_after"][i])
         rows.append({
-            "concealed": kind if joint is None else f"{kind} on {robot.drives.joints[joint]}",
+            "concealed": kind if joint is None else f"{label} on {robot.drives.joints[joint]}",
             "truth": params,
             "named": "nothing" if found is None else f"{found['kind']} on {found['joint']}",
             "found": {} if found is None else {k: v for k, v in found["effect"].items() if k not in ("kind", "joints")},

@@ -60,6 +60,30 @@ def test_inverse_replay_returns_the_torque_that_drove_the_plant():
     np.testing.assert_allclose(back, tau, atol=1e-9)
 
 
+def test_inverse_replay_heats_by_friction_power_like_the_plant():
+    """thermal_drift with friction_power_heating along a replayed constant speed: the temperature settles where
+    the plant's rule puts it, T = p (1 + alpha T) (B w + f_c) w, from the config's friction (not from the current)."""
+    from hil_sim.plant import Plant
+    from hil_sim.replay import inverse_replay
+    from js2spec.robot import load_robot
+
+    robot = load_robot("js2")
+    p_heat, alpha, w = 2.0, 0.01, 40.0
+    plant = Plant(robot, seed=1, effects=[{"kind": "thermal_drift", "joints": [3], "friction_power_heating": p_heat,
+                                           "time_constant": 0.5, "friction_per_kelvin": alpha}])
+    t = np.arange(3000) * 0.002
+    q = np.zeros((len(t), 6))
+    q[:, 3] = w * t
+    dq = np.zeros_like(q)
+    dq[:, 3] = w
+    rep = inverse_replay(plant, t, q, dq, np.zeros_like(q))
+    B, fc = plant.friction.viscous[3], plant.friction.coulomb[3]
+    power0 = (B * w + fc) * w
+    steady = p_heat * power0 / (1 - p_heat * alpha * power0)
+    assert rep.temperature_rise[-1, 3] == pytest.approx(steady, rel=1e-3)
+    assert rep.temperature_rise[:, [0, 1, 2, 4, 5]].max() == 0.0
+
+
 def test_forward_replay_of_the_plants_own_torque_retraces_its_motion():
     """The plant driven by a torque, then replayed forward from the same start with that torque: it retraces the
     motion (the tracking term stays ~0); a plant without the payload drifts off and needs tracking."""

@@ -113,6 +113,31 @@ def test_thermal_drift_grows_friction_as_the_motor_heats():
     assert ratio == pytest.approx(expected, rel=0.01)
 
 
+def test_thermal_drift_heated_by_friction_power():
+    """friction_power_heating: the temperature follows |f w| (the gear warming), not the current. At a constant
+    speed with no copper-loss heating the steady rise is friction_power_heating * (B w + f_c) w, independently
+    computed from the reference friction (the thermal scale on B, f_c included at the rise one step earlier)."""
+    robot = js2()
+    ref = Reference(robot)
+    p_heat, tau_th, alpha, speed = 2.0, 0.5, 0.01, 60.0
+    plant = Plant(robot, seed=3, effects=[{"kind": "thermal_drift", "joints": [0], "friction_power_heating": p_heat,
+                                           "time_constant": tau_th, "friction_per_kelvin": alpha}])
+    constant_speed(plant, ref, 0, speed, q0=POSE, settle=0.3, measure=4.7, ramp=0.2)
+    w = plant.dq_motor[0]
+    assert w == pytest.approx(speed, rel=0.02)
+    # the fixed point of T = p_heat (1 + alpha T) (B w + f_c) w
+    power0 = (ref.B[0] * w + ref.fc[0]) * w
+    steady = p_heat * power0 / (1 - p_heat * alpha * power0)
+    assert steady > 2.0                                       # it really heated
+    assert plant.temperature_rise[0] == pytest.approx(steady, rel=0.03)
+    assert plant.temperature_rise[1:].max() == 0.0
+    # copper losses alone (heating = 0 here) would not have warmed it
+    cold = Plant(robot, seed=3, effects=[{"kind": "thermal_drift", "joints": [0], "heating": 0.0,
+                                          "time_constant": tau_th, "friction_per_kelvin": alpha}])
+    constant_speed(cold, ref, 0, speed, q0=POSE, settle=0.3, measure=1.0, ramp=0.2)
+    assert cold.temperature_rise[0] == 0.0
+
+
 def test_load_dependent_friction_grows_with_load():
     robot = js2()
     ref = Reference(robot)
