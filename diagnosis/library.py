@@ -125,6 +125,13 @@ class Term:
                 yield h, low[i][m_loc, :, t_idx]               # (L, k)
             start += len(chunk)
 
+    def grid_gram(self, rd: ResidualData, j: int, grid, rows: np.ndarray, w: np.ndarray, b: np.ndarray):
+        """Every grid point's weighted normal equations on ``rows`` ((N, m) bool over ``motors(rd, j)``), for a
+        term that can form them cheaper than its columns: yields ``(h, G, A^T b)`` for the grid points whose columns
+        are not all zero there, A = ``grid_columns``' X times ``w`` ((m,): each motor's weight), b the weighted
+        residual ((N, m), read only on ``rows``). None (the default): the search forms them from ``grid_columns``."""
+        return None
+
     def motors(self, rd: ResidualData, j: int) -> np.ndarray:
         """Motors whose torque the term can change (where it is fitted and scored)."""
         return np.array([j])
@@ -557,11 +564,12 @@ def _rnea_derivatives(rd: ResidualData) -> None:
     Dq = np.zeros((len(q), rd.n, rd.n))
     Dv = np.zeros((len(q), rd.n, rd.n))
     qp, vp, ap = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
+    drive = np.ix_(iv, iv)                 # pinocchio order -> drive order (made once: np.ix_ per sample cost 40 %)
     for s in range(len(q)):
         qp[iv], vp[iv], ap[iv] = q[s], dq[s], ddq[s]
         dq_s, dv_s, _ = pin.computeRNEADerivatives(model, data, qp, vp, ap)
-        Dq[s] = dq_s[np.ix_(iv, iv)]
-        Dv[s] = dv_s[np.ix_(iv, iv)]
+        Dq[s] = dq_s[drive]
+        Dv[s] = dv_s[drive]
     rd.extra.setdefault("dtau_dq", Dq)
     rd.extra.setdefault("dtau_dv", Dv)
 
@@ -775,6 +783,35 @@ class Backlash(_Compliance):
             X[:, 0] = resp_low[t_idx, int(h)] * scale
             X[:, 1] = elastic
             yield h, X
+
+    def grid_gram(self, rd, j, grid, rows, w, b):
+        """:meth:`Term.grid_gram` of the whole grid from a few matrix-vector products over the samples: a grid
+        point's columns are resp_h(t) K[j, m] (the link response, filtered) and the elastic column e(t, m), the same
+        at every grid point, so with s_m = K[j, m] w_m and the rows' indicator S(t, m)
+        G = [[sum_t resp_h^2 sum_m S s_m^2, sum_t resp_h sum_m S s_m w_m e], [., sum S (w e)^2]],
+        A^T b = [sum_t resp_h sum_m S s_m b, sum S w e b]: no (rows x 2) array per grid point (equal to the
+        columns' normal equations to rounding, tests/test_diag_speed.py)."""
+        grid = list(grid)
+        if not grid:
+            return iter(())
+        self.columns_low(rd, j, grid[0])                   # makes the filtered responses (rd.extra["backlash_low"])
+        resp_low, el_low = rd.extra["backlash_low"][j]
+        on = rows.astype(float)
+        s = rd.K[j, self.motors(rd, j)] * w                 # (m,)
+        e = el_low[:, :, 0] * w * on                       # weighted elastic column on the rows, 0 elsewhere
+        bo = b * on
+        c00, c01, cb = on @ (s * s), e @ s, bo @ s          # (N,) each: the sums over the motors
+        idx = np.asarray([int(h) for h in grid])
+        R = resp_low[:, idx]                                # (N, grid)
+        g00, g01, r0 = (R * R).T @ c00, R.T @ c01, R.T @ cb
+        g11, r1 = float(np.sum(e * e)), float(np.sum(e * bo))
+
+        def gen():
+            for i, h in enumerate(grid):
+                if g00[i] == 0 and g11 == 0:
+                    continue
+                yield h, np.array([[g00[i], g01[i]], [g01[i], g11]]), np.array([r0[i], r1])
+        return gen()
 
     def effect(self, rd, j, h, coef, std):
         b, k, d = _link_response(rd, j)[1][int(h)]
