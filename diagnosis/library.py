@@ -30,6 +30,7 @@ low-pass with time constant tau (the winding's thermal lag).
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -800,11 +801,17 @@ class Backlash(_Compliance):
         s = rd.K[j, self.motors(rd, j)] * w                 # (m,)
         e = el_low[:, :, 0] * w * on                       # weighted elastic column on the rows, 0 elsewhere
         bo = b * on
-        c00, c01, cb = on @ (s * s), e @ s, bo @ s          # (N,) each: the sums over the motors
         idx = np.asarray([int(h) for h in grid])
-        R = resp_low[:, idx]                                # (N, grid)
-        g00, g01, r0 = (R * R).T @ c00, R.T @ c01, R.T @ cb
-        g11, r1 = float(np.sum(e * e)), float(np.sum(e * bo))
+        R = resp_low if np.array_equal(idx, np.arange(resp_low.shape[1])) else resp_low[:, idx]    # (N, grid)
+        # G does not depend on the residual: kept per joint, rows and weights (the ladder asks again at each step)
+        cache = rd.extra.setdefault("backlash_gram", {})
+        key = (j, hashlib.blake2b(np.packbits(rows).tobytes() + np.asarray(w, float).tobytes() + idx.tobytes(),
+                                  digest_size=16).digest())
+        if key not in cache:
+            c00, c01 = on @ (s * s), e @ s                  # (N,) each: the sums over the motors
+            cache[key] = (np.einsum("tg,tg,t->g", R, R, c00), R.T @ c01, float(np.sum(e * e)))
+        g00, g01, g11 = cache[key]
+        r0, r1 = R.T @ (bo @ s), float(np.sum(e * bo))
 
         def gen():
             for i, h in enumerate(grid):
