@@ -679,15 +679,19 @@ def _link_responses(rd: ResidualData) -> dict:
         if resolved[t]:
             hm2 = hm_half[t]
             for _ in range(n_sub):
-                side = (delta > half).astype(float) - (delta < neg_half)    # +1, -1 in contact; 0 in the gap
+                # +1, -1 in contact; 0 in the gap
+                side = np.subtract(delta > half, delta < neg_half, dtype=float)
                 touch = np.abs(side)
                 stiff = k * touch + gp                                       # d force / d delta on this piece
                 damp = d * touch
                 force = k_half * side - tr                                  # the piece's constant part
                 f0 = force - stiff * delta - damp * ddelta
-                v1 = (ddelta + hm * (0.5 * f0 + 0.5 * (force - stiff * (delta + h_half * ddelta)))) / \
-                    np.maximum(1.0 + hm2 * (damp + h_half * stiff), 0.25)
-                delta = delta + h * (0.5 * ddelta + 0.5 * v1)
+                # halving is exact in binary floating point, so hm (f0 / 2 + x / 2) = (hm / 2) (f0 + x) and
+                # h (v / 2 + v1 / 2) = (h / 2) (v + v1) to the bit; the denominator is above 3/4 where theta = 0.5
+                # resolves (hm h |stiff| < 1), so its floor of 0.25 never acts here
+                v1 = (ddelta + hm2 * (f0 + (force - stiff * (delta + h_half * ddelta)))) / \
+                    (1.0 + hm2 * (damp + h_half * stiff))
+                delta = delta + h_half * (ddelta + v1)
                 ddelta = v1
         else:
             for _ in range(n_sub):
