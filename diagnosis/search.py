@@ -146,10 +146,19 @@ class MismatchSearch:
         the next steps (they do not change, only the residual does), while they fit in ``CACHE_BYTES`` (in the
         library's order; the rest are rebuilt at each step)."""
         b = rw[:, motors][sel_fit]
+        hs = term.grid(rd, j) if grid is None else grid
+        gram = term.grid_gram(rd, j, hs, sel_fit, w[motors], rw[:, motors])
+        if gram is not None:      # the term's normal equations without its columns: SSE = b'b - 2 c'A'b + c'G c
+            bb, best = float(b @ b), None
+            for h, G, Ab in gram:
+                coef = np.linalg.lstsq(G, Ab, rcond=None)[0]
+                sse = max(bb - 2.0 * float(coef @ Ab) + float(coef @ G @ coef), 0.0)
+                if best is None or sse < best[0]:
+                    best = (sse, h, coef, G)
+            return self._finish(rd, term, j, motors, best, len(b))
         items = self._columns_cache.get(key) if key is not None else None
         if items is None:
             w_sub = np.broadcast_to(w[motors], sel_fit.shape)[sel_fit][:, None]
-            hs = term.grid(rd, j) if grid is None else grid
             keep = key is not None and term.band == "low"
             items = []
             for h, X in term.grid_columns(rd, j, hs, sel_fit):

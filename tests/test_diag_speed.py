@@ -74,3 +74,26 @@ def test_search_caches_change_nothing(rd):
             assert a.rejected == b.rejected
     for band in ("low", "wide"):
         np.testing.assert_allclose(cached.predict(rd, band), plain.predict(rd, band), rtol=1e-9, atol=1e-15)
+
+
+@pytest.mark.parametrize("j", [1, 5])
+def test_backlash_normal_equations_are_those_of_its_columns(rd, j):
+    """Backlash.grid_gram (the normal equations from matrix-vector products over the samples) gives the Gram matrix
+    and A^T b that its weighted columns give, for every grid point, on rows that differ between the motors."""
+    from diagnosis.library import Backlash
+
+    term = Backlash()
+    motors = term.motors(rd, j)
+    rows = (rd.mask & rd.fit_rows[:, None])[:, motors]
+    rng = np.random.default_rng(j)
+    w = rng.uniform(0.5, 2.0, len(motors))
+    b = rng.normal(size=rows.shape)
+    grid = term.grid(rd, j)
+    got = {h: (G, Ab) for h, G, Ab in term.grid_gram(rd, j, grid, rows, w, b)}
+    assert sorted(got) == grid
+    w_rows = np.broadcast_to(w, rows.shape)[rows][:, None]
+    for h, X in term.grid_columns(rd, j, grid, rows):
+        A = X * w_rows
+        G, Ab = got[h]
+        np.testing.assert_allclose(G, A.T @ A, rtol=1e-9, atol=1e-12 * np.abs(A.T @ A).max())
+        np.testing.assert_allclose(Ab, A.T @ b[rows], rtol=1e-9, atol=1e-12 * np.abs(A.T @ b[rows]).max())
