@@ -396,6 +396,11 @@ def print_thermal_sizes(rows: list[dict], out: Path) -> None:
             j = e["joints"][0]
             i2 = float(np.nanmean(np.asarray(read_log(rec).feedback.motor_current, float)[:, j] ** 2))
             found = any(f["kind"] == "thermal_drift" and f["joint"] == j for f in row["named"])
+            if e.get("friction_power_heating"):
+                print(f"  thermal_drift case {row['seed']:3d} joint {j}: heated by friction power "
+                      f"({e['friction_power_heating']:.3g} K/W, alpha {e['friction_per_kelvin']:.3g}/K; drawn for a "
+                      f"20-60 % friction change) ({'found' if found else 'missed'})")
+                continue
             print(f"  thermal_drift case {row['seed']:3d} joint {j}: mean I^2 {i2:.3g} A^2, steady friction change "
                   f"{100 * e['heating'] * e['friction_per_kelvin'] * i2:.1f} % ({'found' if found else 'missed'})")
 
