@@ -103,7 +103,7 @@ def main(argv=None) -> int:
               f"{ {k: v for k, v in f['effect'].items() if k != 'kind'} }")
     for u in d["unexplained"]:
         print(f"  unexplained              {u['joint']:<12} {u['fraction_of_residual']:.0%} of its select residual, "
-              f"largest {u['regime']}")
+              f"largest {u['regime']}, mostly {u['frequency_band']}")
     print(f"report gain of the found terms together (rows the search never saw): {d['holdout_gain']:.1%}")
     if args.replay:
         import json

@@ -3,13 +3,45 @@
 For every motor: the held-out residual RMS (torque band) before and after the terms the search accepted, and the
 residual broken down by regime — slow / medium / fast speed, forward / backward,
 the first 0.25 s after the joint's transmitted torque reverses, and the early / middle / late third of the
-recording — so that "where" reads like "motor 2, at low speed" or "motor 1, late in the run".
+recording — and by frequency band (:func:`band_shares` of what the found terms leave), so that "where" reads like
+"motor 2, at low speed" or "motor 1, late in the run, below 0.5 Hz".
 """
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import periodogram
 
 from .residual import ResidualData
+
+# frequency bands of a residual, Hz: what each usually holds on an arm moved by smooth trials
+FREQUENCY_BANDS = ((0.0, 0.5, "below 0.5 Hz (drift, slow trends)"), (0.5, 2.0, "0.5-2 Hz (the motion's own rate)"),
+                   (2.0, 7.0, "2-7 Hz (the torque band's top)"), (7.0, 20.0, "7-20 Hz (above the torque band)"),
+                   (20.0, np.inf, "above 20 Hz (ripple, resonance, noise)"))
+
+
+def band_shares(x: np.ndarray, fs: float, valid: np.ndarray | None = None) -> dict[str, float]:
+    """Share of the power of ``x`` ((N,), e.g. a residual in N*m sampled at ``fs`` Hz) in each of
+    ``FREQUENCY_BANDS`` (one Hann-windowed periodogram of the whole record, mean removed, so a drift over
+    minutes counts as slow; samples where ``valid`` is False count as 0,
+    so a gap adds no power). Bands above the Nyquist frequency are left out; shares sum to 1 (empty dict when
+    ``x`` has no power)."""
+    x = np.where(valid, np.nan_to_num(x), 0.0) if valid is not None else np.nan_to_num(np.asarray(x, dtype=float))
+    if len(x) < 16:
+        return {}
+    f, p = periodogram(x, fs=fs, window="hann", detrend="constant")
+    total = float(np.sum(p))
+    if total <= 0:
+        return {}
+    return {name: float(np.sum(p[(f >= lo) & (f < hi)]) / total) for lo, hi, name in FREQUENCY_BANDS if lo < fs / 2}
+
+
+def dominant_band(shares: dict[str, float]) -> tuple[str | None, float]:
+    """The band holding the most power, and its share."""
+    if not shares:
+        return None, float("nan")
+    name = max(shares, key=shares.get)
+    return name, shares[name]
+
 
 SPEED_BANDS = ((0.0, 10.0, "slow (<10 rad/s)"), (10.0, 50.0, "medium (10-50 rad/s)"), (50.0, np.inf, "fast (>50 rad/s)"))
 
@@ -44,7 +76,8 @@ def regimes(rd: ResidualData, i: int) -> dict[str, np.ndarray]:
 
 def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
     """Per motor: held-out residual RMS before and after the found terms, the regime where the residual is largest
-    relative to the motor's overall level, and whether the motor is where the mismatch is (``flagged``: the accepted
+    relative to the motor's overall level, the frequency bands of what the found terms leave on it (wide band, every
+    valid row: :func:`band_shares`), and whether the motor is where the mismatch is (``flagged``: the accepted
     terms cut its held-out residual by at least ``min_drop``, or — with nothing accepted — a candidate term reaches
     the search's ``min_gain`` on the select rows without passing every other test). RMS figures: report rows."""
     r = np.nan_to_num(rd.residual)
@@ -63,6 +96,7 @@ def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
                 best_gain[i] = max(best_gain[i], sc.select_gain)
     else:
         after, best_gain = before.copy(), np.zeros(rd.n)
+    left_wide = np.nan_to_num(rd.residual_wide) - (search.predict(rd, "wide") if search is not None else 0.0)
     drop = 1 - after / np.where(before > 0, before, np.nan)
     motors = []
     for i in range(rd.n):
@@ -74,12 +108,16 @@ def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
                 reg[name] = {"rms": _rms(r[sel, i]), "samples": int(sel.sum()),
                              "ratio": _rms(r[sel, i]) / overall if overall > 0 else float("nan")}
         worst = max(reg.items(), key=lambda kv: kv[1]["ratio"])[0] if reg else None
+        bands = band_shares(left_wide[:, i], rd.fs, rd.mask[:, i])
+        band, band_share = dominant_band(bands)
         accepted = bool(search is not None and search.accepted_)
         flagged = (bool(drop[i] >= min_drop) if accepted
                    else bool(search is not None and best_gain[i] >= search.min_gain))
         motors.append({"motor": i, "joint": rd.joints[i],
                        "holdout_rms_before": float(before[i]), "holdout_rms_after": float(after[i]),
-                       "holdout_drop": float(drop[i]), "regimes": reg, "worst_regime": worst, "flagged": flagged})
+                       "holdout_drop": float(drop[i]), "regimes": reg, "worst_regime": worst,
+                       "frequency_bands": bands, "dominant_band": band, "dominant_band_share": band_share,
+                       "flagged": flagged})
     flagged = [d for d in motors if d["flagged"]]
     if flagged:
         parts = []

@@ -113,7 +113,9 @@ def headline(d: dict) -> str:
         return (f"Mismatch found: the model leaves out {names}. Together the found terms remove "
                 f"{d['holdout_gain']:.0%} of the residual on the report rows, which the search never saw.")
     if d["unexplained"]:
-        return ("Mismatch, but no named physics: the residual on " + ", ".join(u["joint"] for u in d["unexplained"])
+        return ("Mismatch, but no named physics: the residual on "
+                + ", ".join(f"{u['joint']} ({u['regime'] or 'every regime'}, mostly {u['frequency_band']})"
+                            for u in d["unexplained"])
                 + " has structure that only a refit of the model's own friction explains (unexplained).")
     return "No mismatch that any candidate term explains on held-out data: the model is complete as far as this " \
            "recording can tell."
@@ -224,14 +226,15 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path, replay: bool = False
             for c in d["candidates_step1"]]
     loc_rows = [[f"motor {m['motor'] + 1}", m["joint"], _g(m["holdout_rms_before"]), _g(m["holdout_rms_after"]),
                  f"{m['holdout_drop']:.0%}" if m["holdout_drop"] is not None else "–", m["worst_regime"] or "–",
+                 f"{m['dominant_band']} ({m['dominant_band_share']:.0%})" if m.get("dominant_band") else "–",
                  "yes" if m["flagged"] else ""] for m in d["location"]["motors"]]
     body = [f"<h1>js2 diagnosis</h1><p><b>Model</b> {html.escape(d['model'])}<br><b>Recording</b> "
             f"{html.escape(', '.join(d['recordings']))}<br><b>Split</b> {html.escape(d['split'])}</p>",
             f"<h2>Answer</h2><p style='font-size:1.15em'>{html.escape(headline(d))}</p>",
             f"<h2>Verdict</h2><p>{html.escape(d['verdict'])}</p>",
             f"<h2>Where</h2><p>{html.escape(d['location']['text'])}</p>",
-            html_table(["motor", "joint", "held-out RMS before (N m)", "after", "drop", "largest in", "mismatch"],
-                   loc_rows),
+            html_table(["motor", "joint", "held-out RMS before (N m)", "after", "drop", "largest in",
+                        "left after the findings: most power in", "mismatch"], loc_rows),
             "<h2>What was found</h2>" + (html_table(["kind", "joint", "hyper-parameter", "report gain", "fit gain",
                                                  "coefficients ± std (fit)", "what it means"], rows)
                                      if rows else "<p>nothing</p>"),

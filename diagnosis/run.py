@@ -105,13 +105,22 @@ class DiagnosisResult:
 
     def unexplained(self) -> list[dict]:
         """Structure no named term explains: reference terms (a refit of the model's own friction) that
-        passed every test, with where (joint, regime) and how much of that motor's select-rows residual they take."""
+        passed every test, with where (joint, regime, frequency band of the torque the refit takes out) and how much
+        of that motor's select-rows residual they take."""
+        from .locate import band_shares, dominant_band
+        from .search import _on_motors
+
         out = []
         for s in self.search.references_:
             j = s.fitted.joint
             mot = self.location["motors"][j] if self.location else {}
+            term = s.term
+            took = (_on_motors(term.columns(self.rd, j, s.fitted.hyper), term.motors(self.rd, j)) @ s.fitted.coef)[:, j]
+            band, share = dominant_band(band_shares(took, self.rd.fs, self.rd.mask[:, j]))
             out.append({"kind": "unexplained", "joint": self.rd.joints[j], "joint_index": j,
-                        "regime": mot.get("worst_regime"), "fraction_of_residual": round(float(s.select_gain), 4),
+                        "regime": mot.get("worst_regime"), "frequency_band": band,
+                        "frequency_band_share": None if band is None else round(float(share), 4),
+                        "fraction_of_residual": round(float(s.select_gain), 4),
                         "holdout_gain": float(s.holdout_gain),
                         "what": "the model's friction on this motor differs from the recording's "
                                 "(a refit explains it; no named effect does better): " + s.fitted.summary})

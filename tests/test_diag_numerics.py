@@ -115,3 +115,27 @@ def test_model_says_why_a_recording_does_not_fit_it():
     assert what == "joints" and "a1" in text and "j1" in text
     what, text = model.recording_mismatch(SimpleNamespace(joints=["j1", "j2"], torque_side="motor"))
     assert what == "torque_side" and "'motor'" in text and "'joint'" in text
+
+
+@pytest.mark.parametrize("fs", [100.0, 500.0, 1000.0])
+def test_band_shares_put_a_residual_in_the_band_it_lives_in(fs):
+    """The 'where in frequency' of locate/unexplained: a 12 Hz ripple lands in 7-20 Hz, a slow drift below 0.5 Hz,
+    at any sample rate; a gap (invalid rows) adds no power; bands above Nyquist are left out; shares sum to 1."""
+    from diagnosis.locate import band_shares, dominant_band
+
+    rng = np.random.default_rng(0)
+    t = np.arange(0.0, 60.0, 1.0 / fs)
+    ripple = 0.01 * np.sin(2 * np.pi * 12.0 * t) + 1e-4 * rng.standard_normal(len(t))
+    shares = band_shares(ripple, fs)
+    assert dominant_band(shares)[0].startswith("7-20 Hz") and shares[dominant_band(shares)[0]] > 0.95
+    assert sum(shares.values()) == pytest.approx(1.0)
+    assert ("above 20 Hz (ripple, resonance, noise)" in shares) == (fs / 2 > 20.0)
+    drift = 0.01 * (1 - np.exp(-t / 20.0)) + 1e-4 * rng.standard_normal(len(t))
+    name, share = dominant_band(band_shares(drift, fs))
+    assert name.startswith("below 0.5 Hz") and share > 0.9
+    valid = np.ones(len(t), dtype=bool)
+    valid[len(t) // 3: len(t) // 2] = False
+    spiky = ripple.copy()
+    spiky[~valid] = 1e3 * rng.standard_normal((~valid).sum())          # garbage in the gap, e.g. lost frames
+    assert dominant_band(band_shares(spiky, fs, valid))[0].startswith("7-20 Hz")
+    assert band_shares(np.zeros(100), fs) == {} and dominant_band({})[0] is None

@@ -104,6 +104,9 @@ def test_clean_real_recordings_name_no_effect(kuka, which):
     assert d["verdict"].startswith(("none", "unexplained"))
     for u in d["unexplained"]:
         assert u["joint"] in d["location"]["motors"][u["joint_index"]]["joint"]
+        assert u["frequency_band"] in d["location"]["motors"][u["joint_index"]]["frequency_bands"]   # where, in Hz
+    for m in d["location"]["motors"]:
+        assert sum(m["frequency_bands"].values()) == pytest.approx(1.0)
 
 
 def test_payload_added_to_a_real_recording_is_found_within_10_percent(payload_200hz):
