@@ -349,6 +349,8 @@ class MismatchSearch:
                        for band, r in res.items()}
         for cache in ("_fits", "_stats_cache", "_masks", "_columns_cache"):   # arrays of the recording's size
             self.__dict__.pop(cache, None)
+        for cache in {key for t in self.library for key in t.search_caches}:   # the terms' stores for the search
+            rd.extra.pop(cache, None)
         return self
 
     def _nested_check(self, scored: list[Scored]) -> None:
