@@ -63,7 +63,8 @@ class Term:
     reference = False     # a null the data give (e.g. a refit of the model's own friction): never named an effect
     margin = 0.25         # share of what each ``extends`` term leaves on the select rows this one must cut further
     own_motor = False     # named on joint j but acting on every motor: must also cut motor j's own residual
-    search_caches: tuple = ()   # rd.extra keys the term fills for the search alone: MismatchSearch.fit drops them
+    search_caches: tuple = ()   # rd.extra keys of what the term keeps for the search alone (``grid_columns(...,
+                                # keep=True)``, ``store_bytes``): MismatchSearch.fit drops them when it ends
 
     def joints(self, rd: ResidualData) -> list:
         """Joints a term that is not ``per_joint`` is tried on."""
@@ -126,6 +127,12 @@ class Term:
             for i, h in enumerate(chunk):
                 yield h, low[i][m_loc, :, t_idx]               # (L, k)
             start += len(chunk)
+
+    def store_bytes(self, rd: ResidualData, j: int, grid, rows: np.ndarray) -> int:
+        """For a term with ``search_caches``: bytes of the store ``grid_columns(rd, j, grid, rows, keep=True)``
+        keeps for the next ladder steps (the search charges it to its ``CACHE_BYTES`` in place of the weighted
+        columns it would keep itself)."""
+        return 0
 
     def grid_gram(self, rd: ResidualData, j: int, grid, rows: np.ndarray, w: np.ndarray, b: np.ndarray):
         """Every grid point's weighted normal equations on ``rows`` ((N, m) bool over ``motors(rd, j)``), for a
@@ -505,21 +512,28 @@ class ThermalDrift(Term):
         col[:, j, 1:] = FrictionRefit().columns(rd, j, None)[:, j, :]   # nested: contains the plain refit
         return col
 
-    def grid_columns(self, rd, j, grid, rows):
-        """:meth:`Term.grid_columns` (the same numbers: each series filtered alone, gathered on ``rows``) from one
-        store per joint, rows and grid, kept in ``rd.extra["thermal_low"]`` while the search runs: the filtered heat
-        columns of every grid point gathered on ``rows`` (one column each) and the two refit columns, the same at
-        every grid point (filtered once). The ladder asks again at each step with the same rows (only the residual
-        changes), so the heat source is filtered through each time constant and the torque filter once per search
-        instead of once per step. ``MismatchSearch.fit`` drops the store when it ends (``search_caches``)."""
+    def store_bytes(self, rd, j, grid, rows):
+        """The store of :meth:`grid_columns`: one filtered heat column per grid point and the two refit columns,
+        on the rows."""
+        return 8 * int(rows.sum()) * (len(list(grid)) + 2)
+
+    def grid_columns(self, rd, j, grid, rows, keep: bool = False):
+        """:meth:`Term.grid_columns` (the same numbers: each series filtered alone, gathered on ``rows``), made from
+        the filtered heat columns of every grid point gathered on ``rows`` (one column each, the heat source made
+        once: :meth:`heat_input`) and the two refit columns, the same at every grid point (filtered once).
+        ``keep``: keep them (in ``rd.extra["thermal_low"]``, :meth:`store_bytes`) for the next call with the same
+        joint, rows and grid — the ladder asks again at each step with the same rows, only the residual changes, so
+        the heat source is filtered through each time constant and the torque filter once per search instead of
+        once per step. ``MismatchSearch.fit`` decides within its ``CACHE_BYTES`` and drops the store when it ends
+        (``search_caches``)."""
         grid = list(grid)
         if rows.shape[1] != 1 or not grid:
             yield from super().grid_columns(rd, j, grid, rows)
             return
         on = rows[:, 0]
         key = (j, hashlib.blake2b(np.packbits(on).tobytes() + repr(grid).encode(), digest_size=16).digest())
-        cache = rd.extra.setdefault("thermal_low", {})
-        if key not in cache:
+        store = rd.extra.get("thermal_low", {}).get(key)
+        if store is None:
             refit = FrictionRefit().columns(rd, j, None)[:, j, :].T          # (2, N): time along the last axis
             shared = rd.lowpass_series(np.ascontiguousarray(refit))[:, on].T  # (L, 2)
             heat_low = np.empty((len(grid), int(on.sum())))
@@ -530,8 +544,10 @@ class ThermalDrift(Term):
                 for i, h in enumerate(chunk):
                     XT[i] = self._heat_column(rd, j, h)
                 heat_low[start:start + len(chunk)] = rd.lowpass_series(XT)[:, on]
-            cache[key] = (heat_low, shared)
-        heat_low, shared = cache[key]
+            store = (heat_low, shared)
+            if keep:
+                rd.extra.setdefault("thermal_low", {})[key] = store
+        heat_low, shared = store
         for i, h in enumerate(grid):
             X = np.empty((heat_low.shape[1], 3))
             X[:, 0] = heat_low[i]

@@ -112,12 +112,15 @@ def test_thermal_store_gives_the_default_columns_to_the_bit(rd, j):
     grid = term.grid(rd, j)
     assert {src for _, src in grid} == set(ThermalDrift.SOURCES)
     want = list(Term.grid_columns(term, rd, j, grid, rows))
-    for attempt in ("made", "from the store"):
-        got = list(term.grid_columns(rd, j, grid, rows))
+    rd.extra.pop("thermal_low", None)
+    for attempt in ("made", "kept", "from the store"):
+        got = list(term.grid_columns(rd, j, grid, rows, keep=attempt != "made"))
         assert [h for h, _ in got] == [h for h, _ in want] == grid
         for (h, X), (_, Y) in zip(got, want):
             assert X.shape == Y.shape and np.array_equal(X, Y), (attempt, h)
-    assert len(rd.extra["thermal_low"]) >= 1
+        assert ("thermal_low" in rd.extra) == (attempt != "made"), attempt
+    heat_low, shared = next(iter(rd.extra.pop("thermal_low").values()))
+    assert heat_low.nbytes + shared.nbytes == term.store_bytes(rd, j, grid, rows)
 
 
 def test_search_drops_the_terms_stores(rd):
@@ -128,5 +131,12 @@ def test_search_drops_the_terms_stores(rd):
 
     keys = {k for t in LIBRARY for k in t.search_caches}
     assert "thermal_low" in keys
-    MismatchSearch(kinds=["thermal_drift"], max_terms=1).fit(rd)
+    seen = []
+
+    def progress(tasks, desc):           # what rd.extra holds once a ladder step has scored every candidate
+        yield from tasks
+        seen.append(sorted(keys & set(rd.extra)))
+
+    MismatchSearch(kinds=["thermal_drift"], max_terms=1, progress=progress).fit(rd)
+    assert seen and "thermal_low" in seen[0], "the ladder should keep the thermal store between its steps"
     assert not keys & set(rd.extra)
