@@ -63,6 +63,8 @@ class Term:
     reference = False     # a null the data give (e.g. a refit of the model's own friction): never named an effect
     margin = 0.25         # share of what each ``extends`` term leaves on the select rows this one must cut further
     own_motor = False     # named on joint j but acting on every motor: must also cut motor j's own residual
+    search_caches: tuple = ()   # rd.extra keys of what the term keeps for the search alone (``grid_columns(...,
+                                # keep=True)``, ``store_bytes``): MismatchSearch.fit drops them when it ends
 
     def joints(self, rd: ResidualData) -> list:
         """Joints a term that is not ``per_joint`` is tried on."""
@@ -125,6 +127,12 @@ class Term:
             for i, h in enumerate(chunk):
                 yield h, low[i][m_loc, :, t_idx]               # (L, k)
             start += len(chunk)
+
+    def store_bytes(self, rd: ResidualData, j: int, grid, rows: np.ndarray) -> int:
+        """For a term with ``search_caches``: bytes of the store ``grid_columns(rd, j, grid, rows, keep=True)``
+        keeps for the next ladder steps (the search charges it to its ``CACHE_BYTES`` in place of the weighted
+        columns it would keep itself)."""
+        return 0
 
     def grid_gram(self, rd: ResidualData, j: int, grid, rows: np.ndarray, w: np.ndarray, b: np.ndarray):
         """Every grid point's weighted normal equations on ``rows`` ((N, m) bool over ``motors(rd, j)``), for a
@@ -464,6 +472,7 @@ class ThermalDrift(Term):
     kind, hyper_name, extends = "thermal_drift", "(time_constant, source)", ("friction_refit",)
     margin = 0.25
     SOURCES = ("current_squared", "friction_power")
+    search_caches = ("thermal_heat", "thermal_low")
 
     def grid(self, rd, j):
         """Time constants from 10 s to 4x the recording's span, 12 per decade (a continuous time constant to 10 %),
@@ -479,21 +488,76 @@ class ThermalDrift(Term):
         """The heat source's signal per sample, both as measured: I^2 (A^2), or the friction power |f w| (W) with f
         the friction the recording shows at the motor (measured torque less the model's rigid-body part, in the
         torque band), so that a friction which grows as it warms heats faster, as it does on the arm (with the
-        model's friction instead, a drift with p alpha |f w| = 0.5 was fitted with twice its time constant)."""
-        if source == "current_squared":
-            return np.nan_to_num(rd.motor_current[:, j]) ** 2
-        excess = rd.tau_meas[:, j] - rd.tau_pred[:, j]
-        friction = np.nan_to_num(rd.friction_pred[:, j]) + np.where(np.isfinite(excess), excess, 0.0)
-        return np.abs(friction * _moving(rd, j))
+        model's friction instead, a drift with p alpha |f w| = 0.5 was fitted with twice its time constant).
+        Made once per recording, joint and source (read-only, in ``rd.extra["thermal_heat"]``): every time constant
+        of the grid filters the same signal."""
+        cache = rd.extra.setdefault("thermal_heat", {})
+        if (j, source) not in cache:
+            if source == "current_squared":
+                heat = np.nan_to_num(rd.motor_current[:, j]) ** 2
+            else:
+                excess = rd.tau_meas[:, j] - rd.tau_pred[:, j]
+                friction = np.nan_to_num(rd.friction_pred[:, j]) + np.where(np.isfinite(excess), excess, 0.0)
+                heat = np.abs(friction * _moving(rd, j))
+            heat.setflags(write=False)
+            cache[(j, source)] = heat
+        return cache[(j, source)]
 
-    def columns(self, rd, j, h):
+    def _heat_column(self, rd, j, h) -> np.ndarray:
+        """Column 0 of :meth:`columns` on motor j, (N,): the heat source through the thermal lag, times the model's
+        friction."""
         tc, source = h
         a = np.exp(-1.0 / (rd.fs * tc))
         heat = lfilter([1 - a], [1, -a], self.heat_input(rd, j, source))   # K with a heating of 1 (K/A^2, K/W)
+        return heat * np.nan_to_num(rd.friction_pred[:, j])
+
+    def columns(self, rd, j, h):
         col = np.zeros((len(rd.t), rd.n, 3))
-        col[:, j, 0] = heat * np.nan_to_num(rd.friction_pred[:, j])
+        col[:, j, 0] = self._heat_column(rd, j, h)
         col[:, j, 1:] = FrictionRefit().columns(rd, j, None)[:, j, :]   # nested: contains the plain refit
         return col
+
+    def store_bytes(self, rd, j, grid, rows):
+        """The store of :meth:`grid_columns`: one filtered heat column per grid point and the two refit columns,
+        on the rows."""
+        return 8 * int(rows.sum()) * (len(list(grid)) + 2)
+
+    def grid_columns(self, rd, j, grid, rows, keep: bool = False):
+        """:meth:`Term.grid_columns` (the same numbers: each series filtered alone, gathered on ``rows``), made from
+        the filtered heat columns of every grid point gathered on ``rows`` (one column each, the heat source made
+        once: :meth:`heat_input`) and the two refit columns, the same at every grid point (filtered once).
+        ``keep``: keep them (in ``rd.extra["thermal_low"]``, :meth:`store_bytes`) for the next call with the same
+        joint, rows and grid — the ladder asks again at each step with the same rows, only the residual changes, so
+        the heat source is filtered through each time constant and the torque filter once per search instead of
+        once per step. ``MismatchSearch.fit`` decides within its ``CACHE_BYTES`` and drops the store when it ends
+        (``search_caches``)."""
+        grid = list(grid)
+        if rows.shape[1] != 1 or not grid:
+            yield from super().grid_columns(rd, j, grid, rows)
+            return
+        on = rows[:, 0]
+        key = (j, hashlib.blake2b(np.packbits(on).tobytes() + repr(grid).encode(), digest_size=16).digest())
+        store = rd.extra.get("thermal_low", {}).get(key)
+        if store is None:
+            refit = FrictionRefit().columns(rd, j, None)[:, j, :].T          # (2, N): time along the last axis
+            shared = rd.lowpass_series(np.ascontiguousarray(refit))[:, on].T  # (L, 2)
+            heat_low = np.empty((len(grid), int(on.sum())))
+            per = max(1, self.GRID_BATCH // len(on))
+            for start in range(0, len(grid), per):
+                chunk = grid[start:start + per]
+                XT = np.empty((len(chunk), len(on)))
+                for i, h in enumerate(chunk):
+                    XT[i] = self._heat_column(rd, j, h)
+                heat_low[start:start + len(chunk)] = rd.lowpass_series(XT)[:, on]
+            store = (heat_low, shared)
+            if keep:
+                rd.extra.setdefault("thermal_low", {})[key] = store
+        heat_low, shared = store
+        for i, h in enumerate(grid):
+            X = np.empty((heat_low.shape[1], 3))
+            X[:, 0] = heat_low[i]
+            X[:, 1:] = shared
+            yield h, X
 
     def effect(self, rd, j, h, coef, std):
         tc, source = h

@@ -144,7 +144,9 @@ class MismatchSearch:
 
         A ladder candidate (``key``) filtered into the torque band keeps its weighted columns and Gram matrices for
         the next steps (they do not change, only the residual does), while they fit in ``CACHE_BYTES`` (in the
-        library's order; the rest are rebuilt at each step)."""
+        library's order; the rest are rebuilt at each step). A term with a smaller store of its own
+        (``Term.search_caches``: ThermalDrift's filtered heat columns) keeps that instead, charged to the same
+        budget."""
         b = rw[:, motors][sel_fit]
         hs = term.grid(rd, j) if grid is None else grid
         gram = term.grid_gram(rd, j, hs, sel_fit, w[motors], rw[:, motors])
@@ -160,8 +162,17 @@ class MismatchSearch:
         if items is None:
             w_sub = np.broadcast_to(w[motors], sel_fit.shape)[sel_fit][:, None]
             keep = key is not None and term.band == "low"
+            if keep and term.search_caches:      # the term keeps a smaller store of its own (ThermalDrift)
+                if key not in self._stores:
+                    need = term.store_bytes(rd, j, hs, sel_fit)
+                    if self._cache_used + need <= self.CACHE_BYTES:
+                        self._stores.add(key)
+                        self._cache_used += need
+                keep = False
+            grid_columns = (term.grid_columns(rd, j, hs, sel_fit, keep=True) if key in self._stores else
+                            term.grid_columns(rd, j, hs, sel_fit))
             items = []
-            for h, X in term.grid_columns(rd, j, hs, sel_fit):
+            for h, X in grid_columns:
                 A = X * w_sub
                 if not np.any(A):
                     continue
@@ -296,7 +307,7 @@ class MismatchSearch:
         # the ladder's caches: each candidate's fit until an accepted term changes its motors' residual (a version
         # per band and motor), and the residual's statistics
         self._fits, self._stats_cache, self._masks = {}, {}, None
-        self._columns_cache, self._cache_used = {}, 0
+        self._columns_cache, self._cache_used, self._stores = {}, 0, set()
         self._versions = {band: np.zeros(rd.n, dtype=int) for band in res}
         tasks = [(t, j) for t in self.library for j in (range(rd.n) if t.per_joint else t.joints(rd))]
         taken = set()
@@ -347,8 +358,10 @@ class MismatchSearch:
             self.corrections_["wide"] += raw
         self.final_ = {band: {"fit": _rms(r, m_fit), "select": _rms(r, m_sel), "holdout": _rms(r, m_rep)}
                        for band, r in res.items()}
-        for cache in ("_fits", "_stats_cache", "_masks", "_columns_cache"):   # arrays of the recording's size
+        for cache in ("_fits", "_stats_cache", "_masks", "_columns_cache", "_stores"):   # arrays of the recording's size
             self.__dict__.pop(cache, None)
+        for cache in {key for t in self.library for key in t.search_caches}:   # the terms' stores for the search
+            rd.extra.pop(cache, None)
         return self
 
     def _nested_check(self, scored: list[Scored]) -> None:

@@ -14,9 +14,11 @@ core), stage by stage.
 
 Prints CPU seconds per stage (``time.process_time``: the process's own CPU time, numpy's threads limited to one, so
 other jobs on the machine do not count) and wall seconds, the total scaled to 4 minutes and its ratio to the 30 s
-goal, and the peak memory.
+goal, and the peak memory. ``--per-kind``: also the search's CPU seconds per candidate kind and ladder step (through
+the search's progress hook), and the folder the ``diagnosis`` package was imported from (to compare two versions of
+the code on the same session: run this script with PYTHONPATH set to the other version's checkout).
 
-    .venv/bin/python scripts/bench_diagnose_speed.py [--repeat 8] [--out runs/bench_diagnose_speed]
+    .venv/bin/python scripts/bench_diagnose_speed.py [--repeat 8] [--out runs/bench_diagnose_speed] [--per-kind]
 """
 from __future__ import annotations
 
@@ -68,6 +70,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeat", type=int, default=8, help="files in the session (default 8: about 4.3 minutes)")
     ap.add_argument("--out", type=Path, default=Path("runs/bench_diagnose_speed"))
+    ap.add_argument("--per-kind", action="store_true", help="also CPU seconds per candidate kind and ladder step")
     a = ap.parse_args(argv)
     if a.repeat < 1:
         print("bench_diagnose_speed: error: --repeat must be at least 1", file=sys.stderr)
@@ -100,7 +103,16 @@ def main(argv=None) -> int:
     c, w = stage("  M(q), d tau/d q per sample (pinocchio)", c, w)
     _link_response(rd, 0)
     c, w = stage("  backlash link simulation", c, w)
-    search = MismatchSearch().fit(rd)
+    per_kind = {}
+
+    def progress(tasks, desc):          # CPU seconds of each candidate, summed per kind (band) and ladder step
+        for term, j in tasks:
+            t0 = time.process_time()
+            yield term, j
+            key = (term.kind + (" (unfiltered)" if term.band == "wide" else ""), desc)
+            per_kind[key] = per_kind.get(key, 0.0) + time.process_time() - t0
+
+    search = MismatchSearch(progress=progress if a.per_kind else None).fit(rd)
     c, w = stage("  search (every candidate, every step)", c, w)
     res = DiagnosisResult(model=mdl, log_path=rec, log_paths=[rec] * a.repeat, rd=rd, search=search,
                           location=locate(rd, search))
@@ -116,6 +128,15 @@ def main(argv=None) -> int:
     per_4min = total * 240.0 / span
     print(f"total CPU {total:.1f} s (wall {sum(wall.values()):.1f} s); scaled to a 4-minute session "
           f"{per_4min:.1f} CPU s = {per_4min / GOAL_S:.2f}x the {GOAL_S:g} s goal ({'met' if per_4min <= GOAL_S else 'not met'})")
+    if a.per_kind:
+        import diagnosis
+        steps = sorted({step for _, step in per_kind})
+        kinds = sorted({kind for kind, _ in per_kind}, key=lambda k: -sum(v for (kk, _), v in per_kind.items() if kk == k))
+        print(f"search CPU s per candidate kind (code: {Path(diagnosis.__file__).resolve().parent})")
+        print(f"  {'kind':<30}" + "".join(f" {st.replace('diagnosis ', ''):>7}" for st in steps) + f" {'all':>7}")
+        for kind in kinds:
+            row = [per_kind.get((kind, st), 0.0) for st in steps]
+            print(f"  {kind:<30}" + "".join(f" {v:7.2f}" for v in row) + f" {sum(row):7.2f}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2 ** 20      # KiB -> GiB (Linux)
     print(f"peak memory {peak:.2f} GiB")
     print(f"verdict: {res.verdict()}")

@@ -5,6 +5,8 @@
   term of the library.
 * The search's caches (a candidate's fit kept until an accepted term changes its motors' residual; its weighted
   columns kept across steps) give the same ladder, coefficients and gains as a search that keeps no columns.
+* ThermalDrift's store of filtered heat columns (made once per search, not once per ladder step) gives the very
+  numbers the default ``Term.grid_columns`` gives, and the search drops it when it ends.
 """
 import json
 
@@ -97,3 +99,44 @@ def test_backlash_normal_equations_are_those_of_its_columns(rd, j):
         G, Ab = got[h]
         np.testing.assert_allclose(G, A.T @ A, rtol=1e-9, atol=1e-12 * np.abs(A.T @ A).max())
         np.testing.assert_allclose(Ab, A.T @ b[rows], rtol=1e-9, atol=1e-12 * np.abs(A.T @ b[rows]).max())
+
+
+@pytest.mark.parametrize("j", [2, 5])
+def test_thermal_store_gives_the_default_columns_to_the_bit(rd, j):
+    """ThermalDrift.grid_columns (heat source made once, filtered once per time constant, kept for the next ladder
+    step) yields exactly the arrays Term.grid_columns builds point by point, on the first call and from the store."""
+    from diagnosis.library import Term, ThermalDrift
+
+    term = ThermalDrift()
+    rows = (rd.mask & rd.fit_rows[:, None])[:, [j]]
+    grid = term.grid(rd, j)
+    assert {src for _, src in grid} == set(ThermalDrift.SOURCES)
+    want = list(Term.grid_columns(term, rd, j, grid, rows))
+    rd.extra.pop("thermal_low", None)
+    for attempt in ("made", "kept", "from the store"):
+        got = list(term.grid_columns(rd, j, grid, rows, keep=attempt != "made"))
+        assert [h for h, _ in got] == [h for h, _ in want] == grid
+        for (h, X), (_, Y) in zip(got, want):
+            assert X.shape == Y.shape and np.array_equal(X, Y), (attempt, h)
+        assert ("thermal_low" in rd.extra) == (attempt != "made"), attempt
+    heat_low, shared = next(iter(rd.extra.pop("thermal_low").values()))
+    assert heat_low.nbytes + shared.nbytes == term.store_bytes(rd, j, grid, rows)
+
+
+def test_search_drops_the_terms_stores(rd):
+    """What a term keeps in rd.extra for the search alone (``Term.search_caches``: ThermalDrift's filtered heat
+    columns, arrays of the recording's size per joint) is gone once the search ends."""
+    from diagnosis.library import LIBRARY
+    from diagnosis.search import MismatchSearch
+
+    keys = {k for t in LIBRARY for k in t.search_caches}
+    assert "thermal_low" in keys
+    seen = []
+
+    def progress(tasks, desc):           # what rd.extra holds once a ladder step has scored every candidate
+        yield from tasks
+        seen.append(sorted(keys & set(rd.extra)))
+
+    MismatchSearch(kinds=["thermal_drift"], max_terms=1, progress=progress).fit(rd)
+    assert seen and "thermal_low" in seen[0], "the ladder should keep the thermal store between its steps"
+    assert not keys & set(rd.extra)
