@@ -954,6 +954,54 @@ class Backlash(_Compliance):
                 "" if ok else f"simulated play does not match the residual (scale {coef[0]:.2f})")
 
 
+class BacklashOnFlank(Term):
+    """Lost motion of width b in joint j's gear, read quasi-statically: the link rests on the flank its load
+    pushes, b/2 behind the gear along the transmitted torque, and changes flank where that torque reverses; plus the
+    contact's spring (the elastic column of :class:`JointElasticity`). To first order the model, which evaluates
+    the rigid-body torque at the gear angle, misses  d tau / d q_j * (-b/2 sign tau_j)  (joint side; the motors: K^T
+    of it). Coefficients b/2 and 1/k, both positive.
+
+    Where gravity loads the joint (shoulder, elbow) this is what a play shows in the torque: the impacts at the
+    reversals that :class:`Backlash` simulates are brief, the offset on the flank lasts. It reads nothing where the
+    torque does not depend on q_j (a vertical base axis: :class:`Backlash` looks there). Where the transmitted torque
+    never reverses, the play is held on one flank and reads like an angle offset of the joint (its encoder's zero):
+    the summary says so. Nested: it contains the spring, so it must beat ``joint_elasticity`` (``extends``)."""
+    kind, extends, own_motor = "backlash", ("joint_elasticity",), True
+    margin = 0.04
+    hyper_name = "quasi-static flank"
+
+    def motors(self, rd, j):
+        return np.arange(rd.n)
+
+    def columns(self, rd, j, h):
+        tau_j = np.nan_to_num(rd.tau_rigid_joint[:, j])
+        flank = -_rnea_dq(rd, j) * np.sign(tau_j)[:, None]          # joint side, per unit b/2
+        col = np.zeros((len(tau_j), rd.n, 2))
+        col[:, :, 0] = flank @ rd.K                                  # motor side: K^T, row-wise
+        col[:, :, 1:] = JointElasticity().columns(rd, j, None)
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        half, compliance = float(coef[0]), float(coef[1])
+        ok = half > 3 * std[0] and compliance > 3 * std[1] and 2 * half < 0.2
+        b = 2 * half
+        k = 1.0 / compliance if compliance > 0 else float("inf")
+        m_typ = float(np.median(np.clip(np.nan_to_num(_mass_column(rd, j)[:, j]), 1e-9, None)))
+        d = 2 * 0.3 * np.sqrt(k * m_typ) if np.isfinite(k) else 0.0
+        sgn = np.sign(np.nan_to_num(rd.tau_rigid_joint[:, j]))
+        sgn = sgn[sgn != 0]
+        reversals = int(np.count_nonzero(sgn[1:] != sgn[:-1]))
+        held = ("; its transmitted torque never reverses in this recording, so the play is held on one flank and "
+                "reads the same as an angle offset of the joint (its encoder's zero) of b/2" if reversals == 0 else
+                f"; the link changes flank at the {reversals} reversals of its transmitted torque")
+        why = ("" if ok else "play or contact compliance not positive/significant" if 2 * half < 0.2 else
+               f"a play of {b:.3g} rad is not plausible")
+        return ({"kind": self.kind, "joints": [j], "width": float(b), "stiffness": float(k), "damping": float(d)},
+                f"joint {rd.joints[j]} has lost motion: backlash about {b:.3g} rad (joint side), the link resting "
+                f"b/2 behind the gear on the flank its load pushes, contact stiffness {k:.3g} N*m/rad (damping not "
+                f"resolved: 0.3 of critical assumed){held}", ok, why)
+
+
 # --- gear matrix error --------------------------------------------------------------------------------------------
 class Coupling(Term):
     """A gear matrix error (hil_sim's ``coupling``): the arm's joint-from-motor matrix is K_true = (I + c e_j e_i^T) K,
@@ -1025,6 +1073,7 @@ class Coupling(Term):
 
 LIBRARY: tuple[Term, ...] = (FrictionRefit(), BreakawayTransient(), TorqueOffset(), Stribeck(), Cogging(), CoggingWide(),
                              PayloadChange(), ThermalDrift(),
-                             LoadDependentFriction(), AsymmetricFriction(), JointElasticity(), Backlash(), Coupling())
+                             LoadDependentFriction(), AsymmetricFriction(), JointElasticity(), Backlash(), BacklashOnFlank(),
+                             Coupling())
 KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if not t.reference))   # the named effects (hil_sim's kinds)
 REFERENCE_KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if t.reference))
