@@ -19,6 +19,7 @@ and the parameter errors; writes OUT/bench.json.
 
     .venv/bin/python scripts/bench_diagnose.py [--cases 48] [--first 0] [--out runs/bench_diagnose]
         [--keep-recordings] [--record-only] [--rediagnose]
+    .venv/bin/python scripts/bench_diagnose.py --from-json docs/bench/diagnose-bench-all-2026-11-24.json
 
 Simulating a case takes about a minute on one free core; --cases sets how many are run (results are cached per
 case in OUT/case_NNN.json, so a longer run resumes). With --keep-recordings the recordings stay in OUT/runs/, and
@@ -414,7 +415,19 @@ def main(argv=None) -> int:
     ap.add_argument("--rediagnose", action="store_true",
                     help="diagnose the kept recordings again (ignore the cached results; implies --keep-recordings)")
     ap.add_argument("--record-only", action="store_true", help="simulate and keep the recordings, do not diagnose")
+    ap.add_argument("--from-json", type=Path, metavar="BENCH_JSON",
+                    help="print the report of a saved bench.json (e.g. docs/bench/diagnose-bench-all-2026-11-24.json) "
+                         "without simulating or diagnosing anything")
     a = ap.parse_args(argv)
+    if a.from_json is not None:
+        try:
+            rows = json.loads(a.from_json.read_text())["rows"]
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            print(f"error: {a.from_json}: not a bench.json written by this script ({e}); run it without --from-json "
+                  "to make one", file=sys.stderr)
+            return 2
+        print_report(score(rows), rows)
+        return 0
     keep = a.keep_recordings or a.rediagnose or a.record_only
     from identification.cli.identify import main as identify_main
     from js2io.session import _default_trials
