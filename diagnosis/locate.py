@@ -116,7 +116,8 @@ def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
         motors.append({"motor": i, "joint": rd.joints[i],
                        "holdout_rms_before": float(before[i]), "holdout_rms_after": float(after[i]),
                        "holdout_drop": float(drop[i]), "regimes": reg, "worst_regime": worst,
-                       "frequency_bands": bands, "dominant_band": band, "dominant_band_share": band_share,
+                       "frequency_bands": bands, "dominant_band": band,
+                       "dominant_band_share": float(band_share) if band is not None else None,
                        "flagged": flagged})
     flagged = [d for d in motors if d["flagged"]]
     if flagged:

@@ -8,9 +8,9 @@ from pathlib import Path
 from js2spec.log import join_logs, read_log
 from js2spec.model import IdentifiedModel, load_model
 
-from .locate import locate
+from .locate import band_shares, dominant_band, locate
 from .residual import ResidualData, residual_data
-from .search import MismatchSearch, Scored
+from .search import MismatchSearch, Scored, _on_motors
 
 
 @dataclass
@@ -107,9 +107,6 @@ class DiagnosisResult:
         """Structure no named term explains: reference terms (a refit of the model's own friction) that
         passed every test, with where (joint, regime, frequency band of the torque the refit takes out) and how much
         of that motor's select-rows residual they take."""
-        from .locate import band_shares, dominant_band
-        from .search import _on_motors
-
         out = []
         for s in self.search.references_:
             j = s.fitted.joint
