@@ -71,3 +71,21 @@ def test_parameter_errors_in_the_docs_are_the_benchmarks(scored):
         assert med == pytest.approx(float(parts[0].rstrip(" %")), abs=0.05 if "." in parts[0] else 0.5), (kind, med)
         assert mx == pytest.approx(float(parts[1].rstrip(" %")), abs=0.05 if "." in parts[1] else 0.5), (kind, mx)
         assert n == int(parts[2].split()[0]) and row in doc
+
+
+def test_fresh_cases_figures_are_the_benchmarks():
+    """Cases 72-95, drawn after the code was final (an out-of-sample check of the changes made on cases 0-71)."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_diagnose
+
+    rows = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-fresh-2026-11-24.json").read_text())["rows"]
+    s = bench_diagnose.score(rows)
+    readme = (ROOT / "README.md").read_text()
+    doc = (ROOT / "docs" / "diagnosis.md").read_text()
+    assert [r["seed"] for r in rows] == list(range(72, 96))
+    assert (s["effects_found"], s["effects"]) == (24, 30) and "**24 of 30 (80 %)**" in readme
+    assert (s["visible_found"], s["visible"]) == (24, 25) and "**visible 24 of 25 (96 %)**" in readme
+    assert (s["clean_none"], s["clean"]) == (3, 3) and sum(s["false_names"].values()) == 1
+    assert "Right effect and joint: 24 of 30 (80 %)" in doc and "Visible effects: 24 of 25 (96 %)" in doc
+    kinds = [e["kind"] for r in rows for e in r["effects"]]
+    assert kinds.count("thermal_drift") == 10 and kinds.count("coupling") == 13     # the mix the docs state
