@@ -11,7 +11,8 @@
    is named on the same joint (payload: the same link; coupling: the same driven joint and the same ``from_joint``).
 
 Cases 0-47 draw from the first eight kinds (their recordings are kept); cases from 48 on also conceal ``coupling``
-(``NEW_KINDS``): e.g. ``--first 48 --cases 16``.
+(``NEW_KINDS``): e.g. ``--first 48 --cases 16``; cases from 96 on put backlash, joint elasticity or cogging first
+(``HARD_FROM``), a cogging half the time with 12-24 periods per revolution.
 
 Prints the confusion matrix (rows: concealed kind, or `none` for a clean case; columns: what was named on that
 joint, `nothing` when nothing was) plus the false names (named where nothing of that kind was concealed), the rates
@@ -55,11 +56,17 @@ SIZED_FROM = 56
 #: mean I^2 (A^2) and friction power |f w| (W) per motor over the benchmark's trajectories: medians over 12 kept
 #: recordings (cases 0, 4, ..., 44; the model's friction along the recorded speed), to turn a drawn friction change
 #: into a heating coefficient
+#: cases from here on put the kinds the diagnosis finds hardest first, in turn (backlash, joint elasticity, cogging),
+#: and draw a cogging half the time with a fine ripple (12, 18 or 24 periods per motor revolution, as the independent
+#: simulator's): cases 56-95 drew mostly thermal drifts and couplings, so the fresh cases 72-95 did not test these
+#: kinds (cases 0-95 are unchanged)
+HARD_FROM = 96
+HARD_KINDS = ("backlash", "joint_elasticity", "cogging")
 MEAN_CURRENT_SQUARED = (0.354, 5.25, 1.55, 0.153, 0.120, 0.093)
 MEAN_FRICTION_POWER = (2.21, 1.19, 0.600, 0.354, 0.399, 0.319)
 
 
-def draw_effect(rng: np.random.Generator, kind: str, n: int, sized: bool = False) -> dict:
+def draw_effect(rng: np.random.Generator, kind: str, n: int, sized: bool = False, fine: bool = False) -> dict:
     """One effect of ``kind`` at a random joint with a random magnitude (ranges: docs/diagnosis.md). ``sized``
     (cases from SIZED_FROM on): a thermal drift raises its motor's friction by 20-60 % at steady state (the
     independent simulator's raised B by 50-90 %), heated by I^2 or by the friction power."""
@@ -77,8 +84,11 @@ def draw_effect(rng: np.random.Generator, kind: str, n: int, sized: bool = False
         return {"kind": kind, "joints": [int(rng.integers(0, n))], "velocity": float(rng.uniform(2.0, 8.0)),
                 "shape": float(rng.choice([1.0, 2.0]))}
     if kind == "cogging":
-        return {"kind": kind, "joints": [int(rng.integers(0, n))], "amplitude": float(rng.uniform(0.003, 0.008)),
-                "periods_per_rev": int(rng.choice([1, 2, 3, 4])), "phase": float(rng.uniform(-np.pi, np.pi))}
+        e = {"kind": kind, "joints": [int(rng.integers(0, n))], "amplitude": float(rng.uniform(0.003, 0.008)),
+             "periods_per_rev": int(rng.choice([1, 2, 3, 4])), "phase": float(rng.uniform(-np.pi, np.pi))}
+        if fine and rng.uniform() < 0.5:          # ``fine`` (cases from HARD_FROM on): 12, 18 or 24 per revolution
+            e["periods_per_rev"] = int(rng.choice([12, 18, 24]))
+        return e
     if kind == "payload_change":
         return {"kind": kind, "joints": [int(rng.integers(3, n))], "mass": float(rng.uniform(0.15, 0.8)),
                 "com": [float(x) for x in rng.uniform(-0.05, 0.05, 3)]}
@@ -124,10 +134,13 @@ def draw_case(seed: int, n: int, base_trials: dict) -> dict:
             kinds = [k for k in kinds if k in NEW_KINDS] + [k for k in kinds if k not in NEW_KINDS]
         elif seed >= SIZED_FROM:        # the re-sized thermal drift first in every odd case, for the same reason
             kinds = ["thermal_drift"] + [k for k in kinds if k != "thermal_drift"]
+        if seed >= HARD_FROM:           # the hard kinds first, in turn (they replace the schedule above)
+            first = HARD_KINDS[seed % len(HARD_KINDS)]
+            kinds = [first] + [k for k in kinds if k != first]
     for kind in kinds:
         if len(effects) == count:
             break
-        e = draw_effect(rng, kind, n, sized=seed >= SIZED_FROM)
+        e = draw_effect(rng, kind, n, sized=seed >= SIZED_FROM, fine=seed >= HARD_FROM)
         if e["joints"][0] in used:
             continue
         used.add(e["joints"][0])
