@@ -89,3 +89,22 @@ def test_fresh_cases_figures_are_the_benchmarks():
     assert "Right effect and joint: 24 of 30 (80 %)" in doc and "Visible effects: 24 of 25 (96 %)" in doc
     kinds = [e["kind"] for r in rows for e in r["effects"]]
     assert kinds.count("thermal_drift") == 10 and kinds.count("coupling") == 13     # the mix the docs state
+
+
+def test_hard_cases_figures_are_the_benchmarks():
+    """Cases 96-111, drawn for the hard kinds after the code was final: the rows where js2 is not ahead."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_diagnose
+
+    rows = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-hard-2026-11-24.json").read_text())["rows"]
+    s = bench_diagnose.score(rows)
+    readme = (ROOT / "README.md").read_text()
+    doc = (ROOT / "docs" / "diagnosis.md").read_text()
+    assert [r["seed"] for r in rows] == list(range(96, 112))
+    assert (s["effects_found"], s["effects"]) == (7, 18) and "**7 of 18 (39 %)**" in readme
+    assert (s["visible_found"], s["visible"]) == (7, 13) and "**visible 7 of 13 (54 %)**" in readme
+    assert (s["clean_none"], s["clean"]) == (2, 2) and sum(s["false_names"].values()) == 2
+    assert "Right effect and joint: 7 of 18 (39 %). Visible: 7 of 13 (54 %)." in doc
+    conf = s["confusion"]
+    assert conf["joint_elasticity"]["joint_elasticity"] == 0 and conf["backlash"]["backlash"] == 2
+    assert conf["cogging"]["cogging"] == 2 and "Elasticity was 0 of 5" in readme
