@@ -92,7 +92,7 @@ def test_fresh_cases_figures_are_the_benchmarks():
 
 
 def test_hard_cases_figures_are_the_benchmarks():
-    """Cases 96-111, drawn for the hard kinds after the code was final: the rows where js2 is not ahead."""
+    """Cases 96-135, drawn for the hard kinds after the code was final: the rows where js2 is not ahead."""
     sys.path.insert(0, str(ROOT / "scripts"))
     import bench_diagnose
 
@@ -100,11 +100,18 @@ def test_hard_cases_figures_are_the_benchmarks():
     s = bench_diagnose.score(rows)
     readme = (ROOT / "README.md").read_text()
     doc = (ROOT / "docs" / "diagnosis.md").read_text()
-    assert [r["seed"] for r in rows] == list(range(96, 112))
-    assert (s["effects_found"], s["effects"]) == (7, 18) and "**7 of 18 (39 %)**" in readme
-    assert (s["visible_found"], s["visible"]) == (7, 13) and "**visible 7 of 13 (54 %)**" in readme
-    assert (s["clean_none"], s["clean"]) == (2, 2) and sum(s["false_names"].values()) == 2
-    assert "Right effect and joint: 7 of 18 (39 %). Visible: 7 of 13 (54 %)." in doc
+    assert [r["seed"] for r in rows] == list(range(96, 136))
+    assert (s["effects_found"], s["effects"]) == (21, 46) and "**21 of 46 (46 %)**" in readme
+    assert (s["visible_found"], s["visible"]) == (20, 34) and "**visible 20 of 34 (59 %)**" in readme
+    assert (s["clean_none"], s["clean"]) == (3, 4) and "clean **3 of 4**" in readme
+    assert "backlash 3 of 12" in readme and "**Backlash 3 of 12.**" in doc and "elasticity 0 of 12" in readme
+    on_clean = sum(v for k, v in s["confusion"]["none"].items() if k != "nothing")
+    assert (sum(s["false_names"].values()), on_clean) == (9, 1) and "10 false names" in readme   # 9 + the clean one
+    assert "Right effect and joint: 21 of 46 (46 %). Visible: 20 of 34 (59 %). Clean: 3 of 4 (75 %" in doc
     conf = s["confusion"]
-    assert conf["joint_elasticity"]["joint_elasticity"] == 0 and conf["backlash"]["backlash"] == 2
-    assert conf["cogging"]["cogging"] == 2 and "Elasticity was 0 of 5" in readme
+    assert conf["joint_elasticity"]["joint_elasticity"] == 0 and sum(conf["joint_elasticity"].values()) == 12
+    assert conf["backlash"]["backlash"] == 3 and sum(conf["backlash"].values()) == 12
+    assert conf["cogging"]["cogging"] == 9 and sum(conf["cogging"].values()) == 12
+    fine = [(e["periods_per_rev"], any(f["kind"] == "cogging" and f["joint"] == e["joints"][0] for f in r["named"]))
+            for r in rows for e in r["effects"] if e["kind"] == "cogging" and e["periods_per_rev"] >= 12]
+    assert (sum(found for _, found in fine), len(fine)) == (5, 8) and "fine coggings 5 of 8" in readme
