@@ -701,6 +701,12 @@ def _mass_column(rd: ResidualData, j: int) -> np.ndarray:
     return M_all[:, :, j]
 
 
+def _typical_inertia(rd: ResidualData, j: int) -> float:
+    """M_jj(q) over the recording, its median (kg m^2, joint side; clipped above 0): the link inertia a joint's
+    spring sees, for its resonance sqrt(k / M_jj)."""
+    return float(np.median(np.clip(np.nan_to_num(_mass_column(rd, j)[:, j]), 1e-9, None)))
+
+
 # --- transmission compliance: the link simulated behind the measured gear motion ------------------------------------
 GAP_WIDTHS = (0.005, 0.01, 0.02, 0.04, 0.08)           # rad joint side
 NATURAL_HZ = (3.0, 6.0, 12.0, 24.0)                     # link-on-spring natural frequency grid
@@ -847,7 +853,7 @@ class JointElasticity(Term):
         # the first-order (quasi-static) lag holds only if the link's resonance on that spring, sqrt(k / M_jj),
         # lies above the torque band the residual is compared in; a softer fit is not this physics (a play, a
         # resonance inside the band, or a model error that the column happens to follow)
-        m_typ = float(np.median(np.clip(np.nan_to_num(_mass_column(rd, j)[:, j]), 1e-9, None)))
+        m_typ = _typical_inertia(rd, j)
         f_band = float(rd.signals.settings.fc_acceleration_hz)
         f_res = float(np.sqrt(k / m_typ) / (2 * np.pi)) if np.isfinite(k) else float("inf")
         ok = coef[0] > 3 * std[0] and f_res > f_band
@@ -986,7 +992,7 @@ class BacklashOnFlank(Term):
         ok = half > 3 * std[0] and compliance > 3 * std[1] and 2 * half < 0.2
         b = 2 * half
         k = 1.0 / compliance if compliance > 0 else float("inf")
-        m_typ = float(np.median(np.clip(np.nan_to_num(_mass_column(rd, j)[:, j]), 1e-9, None)))
+        m_typ = _typical_inertia(rd, j)
         d = 2 * 0.3 * np.sqrt(k * m_typ) if np.isfinite(k) else 0.0
         sgn = np.sign(np.nan_to_num(rd.tau_rigid_joint[:, j]))
         sgn = sgn[sgn != 0]
