@@ -66,6 +66,15 @@ class Term:
     search_caches: tuple = ()   # rd.extra keys of what the term keeps for the search alone (``grid_columns(...,
                                 # keep=True)``, ``store_bytes``): MismatchSearch.fit drops them when it ends
 
+    def __init_subclass__(cls, **kwargs):
+        """Every term's ``columns`` vanish where a motor is at rest (``ResidualData.at_rest``): there the model's
+        friction holds whatever torque is applied, up to f_s (eq. 2-3, :func:`diagnosis.residual.hold_at_rest`), so
+        the prediction equals the measured torque with or without the term; the torque filter must spread the same
+        zeros from those rows into the slow rows next to them in the columns as in the residual."""
+        super().__init_subclass__(**kwargs)
+        if "columns" in cls.__dict__:
+            cls.columns = _zero_at_rest(cls.__dict__["columns"])
+
     def joints(self, rd: ResidualData) -> list:
         """Joints a term that is not ``per_joint`` is tried on."""
         return [rd.n - 1]
@@ -153,6 +162,25 @@ class Term:
         ``ranking`` (only candidates for which ``acceptable`` holds may replace it): itself, unless the term knows of an equivalent reading of the same data (see
         :meth:`PayloadChange.resolve`)."""
         return chosen
+
+
+def _zero_at_rest(columns):
+    """``columns`` (rd, j, h) -> (N, n, k), zero on each motor's rows at rest (:meth:`Term.__init_subclass__`)."""
+    def held(self, rd, j, h):
+        col = columns(self, rd, j, h)
+        rest = getattr(rd, "at_rest", None)
+        if rest is None or not rest.any():
+            return col
+        return np.where(rest[:, :, None], 0.0, col)
+    held.__doc__, held.__name__, held.__wrapped__ = columns.__doc__, columns.__name__, columns
+    return held
+
+
+def _sliding(rd: ResidualData, i: int) -> np.ndarray:
+    """1.0 where motor i is not at rest (``ResidualData.at_rest``), 0.0 where it is: a column that is not made by
+    ``columns`` (a filtered store of a whole grid) is multiplied by it, as :meth:`Term.__init_subclass__` says."""
+    rest = getattr(rd, "at_rest", None)
+    return np.ones(len(rd.t)) if rest is None else (~rest[:, i]).astype(float)
 
 
 def _moving(rd: ResidualData, i: int) -> np.ndarray:
@@ -345,9 +373,11 @@ class Cogging(Term):
         on = rows[:, 0]
         th = np.nan_to_num(rd.q_motor[:, j])
         fwd = (_moving(rd, j) >= 0).astype(float)
+        sliding = _sliding(rd, j)
         if self.band != "low":
-            th, fwd = th[on], fwd[on]
-        bwd = 1 - fwd
+            th, fwd, sliding = th[on], fwd[on], sliding[on]
+        bwd = (1 - fwd) * sliding
+        fwd = fwd * sliding
         s1, c1 = np.sin(th), np.cos(th)
         grid = list(grid)
         per = max(1, self.GRID_BATCH // (4 * len(th)))
@@ -509,7 +539,7 @@ class ThermalDrift(Term):
         tc, source = h
         a = np.exp(-1.0 / (rd.fs * tc))
         heat = lfilter([1 - a], [1, -a], self.heat_input(rd, j, source))   # K with a heating of 1 (K/A^2, K/W)
-        return heat * np.nan_to_num(rd.friction_pred[:, j])
+        return heat * np.nan_to_num(rd.friction_pred[:, j]) * _sliding(rd, j)
 
     def columns(self, rd, j, h):
         col = np.zeros((len(rd.t), rd.n, 3))
@@ -891,7 +921,8 @@ class Backlash(_Compliance):
         filter is linear: filtering resp * K[j, :] is filtering resp, then scaling)."""
         cache = rd.extra.setdefault("backlash_low", {})
         if j not in cache:
-            cache[j] = (rd.lowpass(_link_response(rd, j)[0]), rd.lowpass(JointElasticity().columns(rd, j, None)))
+            cache[j] = (rd.lowpass(_link_response(rd, j)[0] * _sliding(rd, j)[:, None]),
+                        rd.lowpass(JointElasticity().columns(rd, j, None)))
         resp_low, el_low = cache[j]
         col = np.empty((len(rd.t), rd.n, 2))
         col[:, :, 0] = resp_low[:, int(h)][:, None] * rd.K[j, :][None, :]

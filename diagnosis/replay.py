@@ -25,9 +25,12 @@ def replay_torques(res: DiagnosisResult, effects: list[dict]) -> np.ndarray:
     rd = res.rd
     drives = _drives(res)
     plant = model_plant(res.model, drives, effects, effects_source="diagnosis findings")
-    tau = inverse_replay(plant, rd.t, rd.q_motor, rd.dq_motor, rd.ddq_motor).tau_motor
     off = res.model.torque_offset
-    tau = tau + (off @ rd.K if rd.torque_side == "joint" else off)      # offsets on the log's side -> motor side
+    off_motor = off @ rd.K if rd.torque_side == "joint" else off       # offsets on the log's side -> motor side
+    # at rest the friction holds the recorded torque up to f_s, as the diagnosis predicts (hold_at_rest)
+    tau = inverse_replay(plant, rd.t, rd.q_motor, rd.dq_motor, rd.ddq_motor, tau_recorded=rd.tau_meas_raw - off_motor,
+                         v_rest=rd.min_speed_motor).tau_motor
+    tau = tau + off_motor
     return rd.signals.filter_like_torque(np.nan_to_num(tau))
 
 

@@ -69,6 +69,7 @@ class ResidualData:
     select_rows: np.ndarray | None = None   # (N,) bool: rows the search ranks and accepts terms on
     min_speed_motor: np.ndarray | None = None   # (n,) rad/s motor: the per-motor speed threshold of ``mask``
     torque_side: str = "motor"    # side the log measured (the arrays here are all motor side)
+    at_rest: np.ndarray | None = None   # (N, n) bool: motor slower than its min_speed_motor threshold (friction holds)
 
     @property
     def n(self) -> int:
@@ -183,6 +184,20 @@ def split_rows(log, t: np.ndarray, keep: np.ndarray, holdout_trial: str = "valid
     return fit, sel, hold, note + " (fit : select = 2 : 1, interleaved time blocks)"
 
 
+def hold_at_rest(applied: np.ndarray, friction: np.ndarray, velocity: np.ndarray, v_rest: np.ndarray,
+                 f_static: np.ndarray, f_coulomb: np.ndarray) -> np.ndarray:
+    """The model's friction with its breakaway level (eq. 2-3): where a motor is at rest (|velocity| below
+    ``v_rest``) friction holds whatever torque the rest of the model leaves (``applied``: measured torque minus the
+    rigid-body, inertia and offset parts), up to f_s (f_c where f_s was not identified); elsewhere ``friction``
+    (B v + f_c sgn v). Arrays (N, n), one side, SI. Rows at rest are never scored, but the torque filter spreads
+    them into the slow rows next to them: a sliding law there smears a friction the arm did not have (the
+    excess looked like a Stribeck curve on clean recordings)."""
+    limit = np.where(np.isfinite(f_static), f_static, f_coulomb)
+    rest = np.abs(np.nan_to_num(velocity)) < v_rest[None, :]
+    held = np.clip(np.nan_to_num(applied), -limit[None, :], limit[None, :])
+    return np.where(rest & np.isfinite(applied), held, friction)
+
+
 def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validation", fit_trials=None,
                   min_speed: float = 0.01, settings: FilterSettings | None = None,
                   report_fraction: float = 0.3) -> ResidualData:
@@ -227,6 +242,14 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
     del W
     rigid_motor = np.full((N, n), np.nan)
     rigid_motor[rows] = W_rigid[rows] @ pi[:nl]
+    # at rest the model's friction holds the applied torque, up to f_s (eq. 2-3), instead of B v + f_c sgn v
+    rigid_side = rigid_motor[rows] @ np.linalg.inv(K) if side == "joint" else rigid_motor[rows]
+    v_rest = (np.full(n, float(min_speed)) if side == "joint"
+              else float(min_speed) / np.max(np.abs(K), axis=0))          # the speed below which ``mask`` drops rows
+    held = hold_at_rest(sig.tau_raw[rows] - rigid_side - (pred_side[rows] - fric_side[rows]), fric_side[rows],
+                        v_side, v_rest, model.friction_static, model.friction_coulomb)
+    pred_side[rows] += held - fric_side[rows]
+    fric_side[rows] = held
     tau_pred = to_motor(pred_side)
     tau_pred[rows] += rigid_motor[rows]
     rigid_joint = np.full((N, n), np.nan)
@@ -258,4 +281,5 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
                         tau_rigid_motor=rigid_motor, friction_pred=friction, motor_current=current, mask=mask,
                         fit_rows=fit, holdout_rows=hold, K=K, joints=list(drives.joints), arm=arm, signals=sig,
                         split_note=note, extra={"model": model, "min_speed": min_speed},
-                        select_rows=sel, min_speed_motor=v_motor, torque_side=side)
+                        select_rows=sel, min_speed_motor=v_motor, torque_side=side,
+                        at_rest=np.abs(np.nan_to_num(sig.dq_motor)) < v_motor[None, :])

@@ -102,10 +102,18 @@ class InverseReplay:
     elastic_joints: list[int] = field(default_factory=list)
 
 
-def inverse_replay(plant: Plant, t, q_motor, dq_motor, ddq_motor) -> InverseReplay:
+def inverse_replay(plant: Plant, t, q_motor, dq_motor, ddq_motor, tau_recorded=None,
+                   v_rest=None) -> InverseReplay:
     """Motor torques the plant needs to follow ``(q_motor, dq_motor, ddq_motor)`` sampled at times ``t`` (module
-    docstring). Rows with a NaN give NaN and leave the state (temperature, deflections) as it was."""
+    docstring). Rows with a NaN give NaN and leave the state (temperature, deflections) as it was.
+
+    At rest the torque a motion needs is not one number: friction holds anything up to f_s. With ``tau_recorded``
+    (motor side, N*m) and ``v_rest`` (rad/s per motor), a motor slower than ``v_rest`` gets the friction that holds
+    the recorded torque, clipped at its f_s (eq. 2-3; what :func:`diagnosis.residual.hold_at_rest` predicts)."""
     q_motor, dq_motor, ddq_motor = (np.asarray(x, float) for x in (q_motor, dq_motor, ddq_motor))
+    hold = tau_recorded is not None and v_rest is not None
+    if hold:
+        tau_recorded, v_rest = np.asarray(tau_recorded, float), np.asarray(v_rest, float)
     t = np.asarray(t, float)
     N, n = q_motor.shape
     d, fr = plant.dyn, plant.friction
@@ -171,6 +179,13 @@ def inverse_replay(plant: Plant, t, q_motor, dq_motor, ddq_motor) -> InverseRepl
             tau[k] -= plant.cog_amp * np.sin(plant.cog_periods * qm[k] + plant.cog_phase)
         if plant.has_load_offset:
             tau = tau + plant.load_offset                  # torque_offset: a constant load the drive carries
+        if hold:
+            rest = (np.abs(dqm) < v_rest) & np.isfinite(tau_recorded[s])
+            if rest.any():
+                other = tau - friction_prev
+                held = np.clip(tau_recorded[s] - other, -fs, fs)
+                friction_prev = np.where(rest, held, friction_prev)
+                tau = other + friction_prev
         out[s] = tau
         temps[s] = temp
     return InverseReplay(tau_motor=out, temperature_rise=temps, deflection=defl,
@@ -331,10 +346,12 @@ class RecordingReplay:
 
 
 def replay_recording(recording, model_path, effects_path=None, min_speed: float = 0.01,
-                     forward: bool = True, bandwidth_hz: float = 5.0) -> RecordingReplay:
+                     forward: bool = True, bandwidth_hz: float = 5.0, hold_at_rest: bool = True) -> RecordingReplay:
     """Replay ``recording`` (a js2 log) through the model in ``model_path`` and, with ``effects_path``, through the
     model plus those effects: inverse replay (torques) and, with ``forward``, forward replay (positions and the
-    tracking torque at ``bandwidth_hz``); module docstring."""
+    tracking torque at ``bandwidth_hz``); module docstring. ``hold_at_rest``: a motor slower than ``min_speed`` (at
+    the joint) gets the friction that holds the recorded torque up to f_s, as the diagnosis predicts
+    (:func:`inverse_replay`); False: the sliding law there too (``bench_diagnose``'s visibility yardstick)."""
     from js2spec.log import read_log
     from js2spec.model import load_model
 
@@ -357,10 +374,13 @@ def replay_recording(recording, model_path, effects_path=None, min_speed: float 
     sig.extra["K"] = K
     off = model.torque_offset
     tau_rec_motor = to_motor_side(sig.tau, drives, off)
+    tau_held = to_motor_side(sig.tau_raw, drives, off)           # what friction holds at rest (unfiltered)
+    v_rest = float(min_speed) / np.max(np.abs(K), axis=0)      # motor side: the diagnosis' rest threshold
     runs, fwd = [], []
     for eff in ([[]] + ([effects] if effects_path is not None else [])):
         plant = model_plant(model, drives, eff, effects_path)
-        rep = inverse_replay(plant, sig.t, sig.q_motor, sig.dq_motor, sig.ddq_motor)
+        rep = inverse_replay(plant, sig.t, sig.q_motor, sig.dq_motor, sig.ddq_motor,
+                             tau_recorded=tau_held if hold_at_rest else None, v_rest=v_rest)
         runs.append(to_log_side(rep.tau_motor, drives, off))
         if forward:
             fwd.append(forward_replay(model_plant(model, drives, eff, effects_path), sig.t, sig.q_motor,

@@ -211,7 +211,8 @@ def visibility(rec: Path, model: Path, effects: list[dict], out: Path) -> list[f
     """How much of the residual each concealed effect makes, on its own: the recording replayed through the model
     alone and through the model plus that one effect at its true parameters (``hil_sim.replay``, inverse: the
     recorded motion, the simulator's own effect code); 1 - RMS_with^2 / RMS_model^2 of the torque-band residual on
-    the effect's motor (a payload: the motor it changes most). Below MIN_VISIBLE the exact effect removes less of
+    the effect's motor (a payload: the motor it changes most), with the simulator's sliding friction at rest too
+    (``hold_at_rest=False``: the yardstick the committed rows were measured with). Below MIN_VISIBLE the exact effect removes less of
     its motor's residual than the diagnosis requires of any term: no method with that floor can name it. Negative:
     the exact effect does not reproduce the recording sample by sample (a backlash's impacts on a joint without
     gravity: the link's place in the gap is chaotic), which says nothing about whether it shows."""
@@ -223,7 +224,7 @@ def visibility(rec: Path, model: Path, effects: list[dict], out: Path) -> list[f
     for i, e in enumerate(effects):
         path = out / f"truth_{rec.stem}_{i}.yaml"
         path.write_text(yaml.safe_dump({"effects": [e]}))
-        rep = replay_recording(rec, model, path, forward=False)
+        rep = replay_recording(rec, model, path, forward=False, hold_at_rest=False)
         path.unlink(missing_ok=True)
         g = 1.0 - (rep.rms("effects") / rep.rms("model")) ** 2
         vis.append(float(np.nanmax(g) if e["kind"] in ("payload_change", "coupling") else g[e["joints"][0]]))

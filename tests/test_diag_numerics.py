@@ -139,3 +139,20 @@ def test_band_shares_put_a_residual_in_the_band_it_lives_in(fs):
     spiky[~valid] = 1e3 * rng.standard_normal((~valid).sum())          # garbage in the gap, e.g. lost frames
     assert dominant_band(band_shares(spiky, fs, valid))[0].startswith("7-20 Hz")
     assert band_shares(np.zeros(100), fs) == {} and dominant_band({})[0] is None
+
+
+def test_at_rest_the_model_friction_holds_the_applied_torque_up_to_breakaway():
+    """Eq. 2-3 in the prediction: a motor at rest gets the friction that holds what the rest of the model leaves,
+    clipped at f_s (f_c where the simultaneous method left f_s out); moving motors keep B v + f_c sgn v."""
+    from diagnosis.residual import hold_at_rest
+
+    velocity = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, 3.0], [0.0, np.nan]])      # motor side, rad/s
+    sliding = np.array([[0.0, 0.0], [0.02, 0.0], [0.0, -0.03], [0.0, 0.0]])       # B v + f_c sgn v
+    applied = np.array([[0.01, -0.08], [0.05, 0.02], [-0.04, 0.5], [0.03, 0.01]])  # measured minus the rest
+    held = hold_at_rest(applied, sliding, velocity, v_rest=np.array([1.0, 1.0]),
+                        f_static=np.array([0.03, np.nan]), f_coulomb=np.array([0.02, 0.05]))
+    expected = np.array([[0.01, -0.05],      # held exactly; the second clipped at its f_c (no f_s identified)
+                         [0.03, 0.02],       # 0.5 rad/s is still below v_rest: held, clipped at f_s = 0.03
+                         [-0.03, -0.03],     # the second motor turns: its sliding friction stays
+                         [0.03, 0.01]])      # an unknown velocity counts as rest (its rows are never scored)
+    assert np.allclose(held, expected)

@@ -194,7 +194,10 @@ def test_prediction_carries_the_exported_offsets_and_sqrt_viscous_friction(kuka,
     (tmp_path / "model.yaml").write_text(yaml.safe_dump(d))
     rd1 = residual_data(load_model(tmp_path), log)
     diff = rd1.tau_pred_raw - rd0.tau_pred_raw
-    ok = np.isfinite(diff).all(axis=1)
+    # where a joint is at rest its friction holds the recorded torque (up to f_c: no f_s from this method), so an
+    # offset changes the held friction there, not the prediction: compare rows where every joint moves
+    ok = np.isfinite(diff).all(axis=1) & ~rd0.at_rest.any(axis=1)
+    assert ok.sum() > 1000
     v = rd0.dq_motor[ok, 4]                                    # K = I: joint speed
     np.testing.assert_allclose(diff[ok, 2], 1.0, atol=1e-9)
     np.testing.assert_allclose(diff[ok, 4], 0.5 * np.sign(v) * np.sqrt(np.abs(v)), atol=1e-9)
