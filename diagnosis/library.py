@@ -338,15 +338,24 @@ class Cogging(Term):
     def grid_columns(self, rd, j, grid, rows):
         """:meth:`Term.grid_columns` on motor j alone (the columns are zero on the other motors): unfiltered, the
         sines on ``rows`` only; in the torque band, many period counts filtered in one call (per column, the same
-        numbers as :meth:`Term.columns_low`)."""
+        numbers as :meth:`Term.columns_low`), and only on the stretches around ``rows`` the filter needs
+        (:meth:`ResidualData.lowpass_spans`: the fit rows are ~60 % of a recording)."""
         if rows.shape[1] != 1:
             yield from super().grid_columns(rd, j, grid, rows)
             return
         on = rows[:, 0]
         th = np.nan_to_num(rd.q_motor[:, j])
         fwd = (_moving(rd, j) >= 0).astype(float)
+        spans = None
         if self.band != "low":
             th, fwd = th[on], fwd[on]
+        else:
+            spans = rd.lowpass_spans(on)
+            if spans is not None:         # the stretches laid end to end
+                keep = np.concatenate([np.arange(a, b) for a, b in spans])
+                th, fwd, on = th[keep], fwd[keep], on[keep]
+                ends = np.cumsum([b - a for a, b in spans])
+                spans = list(zip(np.r_[0, ends[:-1]], ends))
         bwd = 1 - fwd
         s1, c1 = np.sin(th), np.cos(th)
         grid = list(grid)
@@ -369,7 +378,7 @@ class Cogging(Term):
                 np.multiply(s, bwd, out=XT[i, 2])
                 np.multiply(c, bwd, out=XT[i, 3])
             if self.band == "low":
-                XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1))[:, on].reshape(len(chunk), 4, -1)
+                XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1), spans)[:, on].reshape(len(chunk), 4, -1)
             for i, h in enumerate(chunk):
                 yield h, XT[i].T
 
