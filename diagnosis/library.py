@@ -96,8 +96,9 @@ class Term:
         ``(h, X)`` with X = ``band_columns(rd, j, h)[:, motors, :][rows]``, shape (rows.sum(), k), in grid order.
 
         Default: a term that filters with :meth:`Term.columns_low` has the columns of several grid points filtered
-        in one call (the filter acts on each column alone, so the numbers are the same as one call per grid point);
-        otherwise one ``band_columns`` per grid point. A term overrides it where all grid points' columns come
+        in one call (the filter acts on each column alone, so the numbers are the same as one call per grid point),
+        and only on the stretches around the rows (:meth:`ResidualData.lowpass_spans`: equal to filtering the whole
+        runs to the filter's rounding); otherwise one ``band_columns`` per grid point. A term overrides it where all grid points' columns come
         cheaper together (:meth:`Cogging.grid_columns`)."""
         motors = self.motors(rd, j)
         if self.band != "low" or type(self).columns_low is not Term.columns_low:
@@ -109,22 +110,33 @@ class Term:
         grid = list(grid)
         t_idx, m_loc = np.nonzero(rows)                # the rows in the order boolean indexing gives them
         N, m = rows.shape
+        # filtered only on the stretches around the rows (ResidualData.lowpass_spans), laid end to end
+        spans = rd.lowpass_spans(rows.any(axis=1))
+        if spans is not None:
+            keep = np.concatenate([np.arange(a, b) for a, b in spans])
+            ends = np.cumsum([b - a for a, b in spans])
+            spans = list(zip(np.r_[0, ends[:-1]], ends))
+            where = np.zeros(N, dtype=np.intp)
+            where[keep] = np.arange(len(keep))
+            t_idx, N = where[t_idx], len(keep)
+        else:
+            keep = slice(None)
         start = 0
         while start < len(grid):
-            first = self.columns(rd, j, grid[start])[:, motors, :]
+            first = self.columns(rd, j, grid[start])[keep][:, motors, :]
             k = first.shape[2]
             chunk = grid[start:start + max(1, self.GRID_BATCH // first.size)]
             XT = np.empty((len(chunk), m, k, N))          # time along the last axis: the filter's layout
             XT[0] = first.transpose(1, 2, 0)
             for i, h in enumerate(chunk[1:], 1):
-                XT[i] = self.columns(rd, j, h)[:, motors, :].transpose(1, 2, 0)
+                XT[i] = self.columns(rd, j, h)[keep][:, motors, :].transpose(1, 2, 0)
             # a column the same at every grid point of the chunk (e.g. a nested refit's) is filtered once
             same = np.array([[all(np.array_equal(XT[i, a, c], XT[0, a, c]) for i in range(1, len(chunk)))
                               for c in range(k)] for a in range(m)])
             todo = np.ones(XT.shape[:3], dtype=bool)
             todo[1:, same] = False
             low = np.empty_like(XT)
-            low[todo] = rd.lowpass_series(XT[todo])
+            low[todo] = rd.lowpass_series(XT[todo], spans)
             low[1:, same] = low[0, same]
             for i, h in enumerate(chunk):
                 yield h, low[i][m_loc, :, t_idx]               # (L, k)
@@ -550,16 +562,22 @@ class ThermalDrift(Term):
         key = (j, hashlib.blake2b(np.packbits(on).tobytes() + repr(grid).encode(), digest_size=16).digest())
         store = rd.extra.get("thermal_low", {}).get(key)
         if store is None:
-            refit = FrictionRefit().columns(rd, j, None)[:, j, :].T          # (2, N): time along the last axis
-            shared = rd.lowpass_series(np.ascontiguousarray(refit))[:, on].T  # (L, 2)
+            # filtered only on the stretches around the rows (ResidualData.lowpass_spans), laid end to end
+            spans, kept, on_in = rd.lowpass_spans(on), slice(None), on
+            if spans is not None:
+                kept = np.concatenate([np.arange(a, b) for a, b in spans])
+                ends = np.cumsum([b - a for a, b in spans])
+                spans, on_in = list(zip(np.r_[0, ends[:-1]], ends)), on[kept]
+            refit = FrictionRefit().columns(rd, j, None)[kept, j, :].T       # (2, N): time along the last axis
+            shared = rd.lowpass_series(np.ascontiguousarray(refit), spans)[:, on_in].T  # (L, 2)
             heat_low = np.empty((len(grid), int(on.sum())))
-            per = max(1, self.GRID_BATCH // len(on))
+            per = max(1, self.GRID_BATCH // len(on_in))
             for start in range(0, len(grid), per):
                 chunk = grid[start:start + per]
-                XT = np.empty((len(chunk), len(on)))
+                XT = np.empty((len(chunk), len(on_in)))
                 for i, h in enumerate(chunk):
-                    XT[i] = self._heat_column(rd, j, h)
-                heat_low[start:start + len(chunk)] = rd.lowpass_series(XT)[:, on]
+                    XT[i] = self._heat_column(rd, j, h)[kept]        # the thermal lag over the whole recording
+                heat_low[start:start + len(chunk)] = rd.lowpass_series(XT, spans)[:, on_in]
             store = (heat_low, shared)
             if keep:
                 rd.extra.setdefault("thermal_low", {})[key] = store
