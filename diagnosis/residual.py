@@ -119,7 +119,8 @@ class ResidualData:
         beyond the run. Where a stretch ends at its run's end the filter starts there as on the whole run (the same
         numbers); where it ends inside the run the start differs, but by less than ``MEMORY`` of the signal once it
         reaches the rows: far below a double's rounding (the rounding then makes the two the same numbers, or a
-        unit in the last place apart). None where some of ``rows`` lie outside every run (filter the whole)."""
+        unit in the last place apart). None where some of ``rows`` lie outside every run, or there are no rows (filter
+        the whole)."""
         sos = self._sos()
         r = max(float(np.max(np.abs(np.roots(sec[3:])))) for sec in sos)
         reach = max(int(np.ceil(np.log(self.MEMORY) / np.log(r))), 4 * 3 * (2 * len(sos) + 1) * 4) if r > 0 else 0
@@ -133,7 +134,7 @@ class ResidualData:
             cut = np.flatnonzero(np.diff(idx) > 2 * reach)
             for lo, hi in zip(np.r_[idx[0], idx[cut + 1]], np.r_[idx[cut], idx[-1]]):
                 spans.append((max(a, a + lo - reach), min(b, a + hi + 1 + reach)))
-        return spans if inside == int(rows.sum()) else None
+        return spans if spans and inside == int(rows.sum()) else None
 
 
 def model_cutoffs(fs: float, model: IdentifiedModel | None = None) -> FilterSettings:

@@ -174,6 +174,7 @@ def test_filtering_only_the_stretches_around_the_rows_gives_the_whole_runs_value
     assert cut.lowpass_spans(some) is not None
     some[runs[0][0] + 5] = True
     assert cut.lowpass_spans(some) is None
+    assert rd.lowpass_spans(np.zeros(len(rd.t), dtype=bool)) is None
 
 
 def test_docs_speed_figures_are_the_committed_bench_runs():
