@@ -96,15 +96,18 @@ class Term:
         """The columns (N, n, k) in the band the term is compared in (``columns_low`` or ``columns``)."""
         return self.columns_low(rd, j, h) if self.band == "low" else self.columns(rd, j, h)
 
-    GRID_BATCH = 2 ** 22      # elements (N x motors x columns x grid points) of one batch of grid_columns
+    GRID_BATCH = 2 ** 21      # elements (N x motors x columns x grid points) of one batch of grid_columns: 16 MiB
+                              # arrays, below glibc's 32 MiB mmap ceiling, so freed batches are reused rather than
+                              # mapped anew (page faults: 2^22 cost ~1 s more CPU on the speed bench's search)
 
     def grid_columns(self, rd: ResidualData, j: int, grid, rows: np.ndarray):
         """Every grid point's columns on ``rows`` ((N, m) bool over the term's motors ``motors(rd, j)``): yields
         ``(h, X)`` with X = ``band_columns(rd, j, h)[:, motors, :][rows]``, shape (rows.sum(), k), in grid order.
 
         Default: a term that filters with :meth:`Term.columns_low` has the columns of several grid points filtered
-        in one call (the filter acts on each column alone, so the numbers are the same as one call per grid point);
-        otherwise one ``band_columns`` per grid point. A term overrides it where all grid points' columns come
+        in one call (the filter acts on each column alone, so the numbers are the same as one call per grid point),
+        and only on the stretches around the rows (:meth:`ResidualData.lowpass_spans`: equal to filtering the whole
+        runs to the filter's rounding); otherwise one ``band_columns`` per grid point. A term overrides it where all grid points' columns come
         cheaper together (:meth:`Cogging.grid_columns`)."""
         motors = self.motors(rd, j)
         if self.band != "low" or type(self).columns_low is not Term.columns_low:
@@ -116,22 +119,33 @@ class Term:
         grid = list(grid)
         t_idx, m_loc = np.nonzero(rows)                # the rows in the order boolean indexing gives them
         N, m = rows.shape
+        # filtered only on the stretches around the rows (ResidualData.lowpass_spans), laid end to end
+        spans = rd.lowpass_spans(rows.any(axis=1))
+        if spans is not None:
+            keep = np.concatenate([np.arange(a, b) for a, b in spans])
+            ends = np.cumsum([b - a for a, b in spans])
+            spans = list(zip(np.r_[0, ends[:-1]], ends))
+            where = np.zeros(N, dtype=np.intp)
+            where[keep] = np.arange(len(keep))
+            t_idx, N = where[t_idx], len(keep)
+        else:
+            keep = slice(None)
         start = 0
         while start < len(grid):
-            first = self.columns(rd, j, grid[start])[:, motors, :]
+            first = self.columns(rd, j, grid[start])[keep][:, motors, :]
             k = first.shape[2]
             chunk = grid[start:start + max(1, self.GRID_BATCH // first.size)]
             XT = np.empty((len(chunk), m, k, N))          # time along the last axis: the filter's layout
             XT[0] = first.transpose(1, 2, 0)
             for i, h in enumerate(chunk[1:], 1):
-                XT[i] = self.columns(rd, j, h)[:, motors, :].transpose(1, 2, 0)
+                XT[i] = self.columns(rd, j, h)[keep][:, motors, :].transpose(1, 2, 0)
             # a column the same at every grid point of the chunk (e.g. a nested refit's) is filtered once
             same = np.array([[all(np.array_equal(XT[i, a, c], XT[0, a, c]) for i in range(1, len(chunk)))
                               for c in range(k)] for a in range(m)])
             todo = np.ones(XT.shape[:3], dtype=bool)
             todo[1:, same] = False
             low = np.empty_like(XT)
-            low[todo] = rd.lowpass_series(XT[todo])
+            low[todo] = rd.lowpass_series(XT[todo], spans)
             low[1:, same] = low[0, same]
             for i, h in enumerate(chunk):
                 yield h, low[i][m_loc, :, t_idx]               # (L, k)
@@ -366,7 +380,8 @@ class Cogging(Term):
     def grid_columns(self, rd, j, grid, rows):
         """:meth:`Term.grid_columns` on motor j alone (the columns are zero on the other motors): unfiltered, the
         sines on ``rows`` only; in the torque band, many period counts filtered in one call (per column, the same
-        numbers as :meth:`Term.columns_low`)."""
+        numbers as :meth:`Term.columns_low`), and only on the stretches around ``rows`` the filter needs
+        (:meth:`ResidualData.lowpass_spans`: the fit rows are ~60 % of a recording)."""
         if rows.shape[1] != 1:
             yield from super().grid_columns(rd, j, grid, rows)
             return
@@ -374,8 +389,16 @@ class Cogging(Term):
         th = np.nan_to_num(rd.q_motor[:, j])
         fwd = (_moving(rd, j) >= 0).astype(float)
         sliding = _sliding(rd, j)
+        spans = None
         if self.band != "low":
             th, fwd, sliding = th[on], fwd[on], sliding[on]
+        else:
+            spans = rd.lowpass_spans(on)
+            if spans is not None:         # the stretches laid end to end
+                keep = np.concatenate([np.arange(a, b) for a, b in spans])
+                th, fwd, sliding, on = th[keep], fwd[keep], sliding[keep], on[keep]
+                ends = np.cumsum([b - a for a, b in spans])
+                spans = list(zip(np.r_[0, ends[:-1]], ends))
         bwd = (1 - fwd) * sliding
         fwd = fwd * sliding
         s1, c1 = np.sin(th), np.cos(th)
@@ -399,7 +422,7 @@ class Cogging(Term):
                 np.multiply(s, bwd, out=XT[i, 2])
                 np.multiply(c, bwd, out=XT[i, 3])
             if self.band == "low":
-                XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1))[:, on].reshape(len(chunk), 4, -1)
+                XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1), spans)[:, on].reshape(len(chunk), 4, -1)
             for i, h in enumerate(chunk):
                 yield h, XT[i].T
 
@@ -569,16 +592,22 @@ class ThermalDrift(Term):
         key = (j, hashlib.blake2b(np.packbits(on).tobytes() + repr(grid).encode(), digest_size=16).digest())
         store = rd.extra.get("thermal_low", {}).get(key)
         if store is None:
-            refit = FrictionRefit().columns(rd, j, None)[:, j, :].T          # (2, N): time along the last axis
-            shared = rd.lowpass_series(np.ascontiguousarray(refit))[:, on].T  # (L, 2)
+            # filtered only on the stretches around the rows (ResidualData.lowpass_spans), laid end to end
+            spans, kept, on_in = rd.lowpass_spans(on), slice(None), on
+            if spans is not None:
+                kept = np.concatenate([np.arange(a, b) for a, b in spans])
+                ends = np.cumsum([b - a for a, b in spans])
+                spans, on_in = list(zip(np.r_[0, ends[:-1]], ends)), on[kept]
+            refit = FrictionRefit().columns(rd, j, None)[kept, j, :].T       # (2, N): time along the last axis
+            shared = rd.lowpass_series(np.ascontiguousarray(refit), spans)[:, on_in].T  # (L, 2)
             heat_low = np.empty((len(grid), int(on.sum())))
-            per = max(1, self.GRID_BATCH // len(on))
+            per = max(1, self.GRID_BATCH // len(on_in))
             for start in range(0, len(grid), per):
                 chunk = grid[start:start + per]
-                XT = np.empty((len(chunk), len(on)))
+                XT = np.empty((len(chunk), len(on_in)))
                 for i, h in enumerate(chunk):
-                    XT[i] = self._heat_column(rd, j, h)
-                heat_low[start:start + len(chunk)] = rd.lowpass_series(XT)[:, on]
+                    XT[i] = self._heat_column(rd, j, h)[kept]        # the thermal lag over the whole recording
+                heat_low[start:start + len(chunk)] = rd.lowpass_series(XT, spans)[:, on_in]
             store = (heat_low, shared)
             if keep:
                 rd.extra.setdefault("thermal_low", {})[key] = store
@@ -787,10 +816,8 @@ def _link_responses(rd: ResidualData) -> dict:
     # fastest natural frequency at the typical inertia
     n_sub = int(np.clip(np.ceil(2 * np.pi * max(NATURAL_HZ) * dt / 0.25), 1, 16))
     h = dt / n_sub
-    h_over_m = (h / M)[:, owner]                        # (N, lanes)
-    tr_all = tau_r[:, owner]
-    gp_all = Gp[:, owner]
-    delta = -tr_all[0] / k - np.sign(tr_all[0]) * half  # at rest on the flank the load pushes
+    tr0 = tau_r[0, owner]
+    delta = -tr0 / k - np.sign(tr0) * half              # at rest on the flank the load pushes
     ddelta = np.zeros_like(k)
     # theta-method: trapezoidal (theta 0.5) where the step resolves the piece's dynamics, backward Euler (1) where it
     # does not (a tiny inertia): A-stable and L-stable respectively. Where every lane resolves both pieces (the gap
@@ -799,10 +826,17 @@ def _link_responses(rd: ResidualData) -> dict:
     # after its loop. Each product and sum is the same IEEE operation on the same numbers as with theta an array of
     # 0.5 (outside the subnormal range): bit-identical to the lane-by-lane choice, 22 % fewer instructions
     neg_half, k_half, h_half = -half, k * half, h * 0.5
-    out = np.empty((N, len(lanes)))
+    L = len(lanes)
+    above, below = np.empty(L, dtype=bool), np.empty(L, dtype=bool)
+    side, touch, stiff, damp, force, f0, tmp, den, v1 = (np.empty(L) for _ in range(9))
+    mul, add, sub, div, gt, lt, absolute = (np.multiply, np.add, np.subtract, np.divide, np.greater, np.less,
+                                            np.absolute)    # ufuncs with a positional out: less call overhead
+    outs = {j: np.empty((N, int(np.sum(owner == j)))) for j in range(n)}
     block = 2048          # samples whose per-sample terms and outputs are made together (cache-sized temporaries)
     for t0 in range(0, N, block):
-        hm_b, tr_b, gp_b = h_over_m[t0:t0 + block], tr_all[t0:t0 + block], gp_all[t0:t0 + block]
+        # (block, lanes): per block, not (N, lanes) for the whole recording (1.2 GB at 5 minutes, 500 Hz)
+        hm_b = (h / M[t0:t0 + block])[:, owner]
+        tr_b, gp_b = tau_r[t0:t0 + block][:, owner], Gp[t0:t0 + block][:, owner]
         hm_half = hm_b * 0.5
         resolved = np.all((hm_b * (d + h * np.abs(k + gp_b)) < 1.0) & (hm_b * (h * np.abs(gp_b)) < 1.0), axis=1)
         states = np.empty((len(hm_b), 2, len(lanes)))
@@ -811,20 +845,44 @@ def _link_responses(rd: ResidualData) -> dict:
             if resolved[i]:
                 hm2 = hm_half[i]
                 for _ in range(n_sub):
-                    # +1, -1 in contact; 0 in the gap
-                    side = np.subtract(delta > half, delta < neg_half, dtype=float)
-                    touch = np.abs(side)
-                    stiff = k * touch + gp                                   # d force / d delta on this piece
-                    damp = d * touch
-                    force = k_half * side - tr                              # the piece's constant part
-                    f0 = force - stiff * delta - damp * ddelta
+                    # the same IEEE operations on the same numbers as the formulas in the comments, written into
+                    # buffers made once (a + b as b + a and a * b as b * a where that saves a temporary:
+                    # commutative to the bit): no array is allocated per sub-step
+                    # side = (delta > half) - (delta < -half): +1, -1 in contact; 0 in the gap
+                    gt(delta, half, above)
+                    lt(delta, neg_half, below)
+                    np.subtract(above, below, out=side, dtype=float)
+                    absolute(side, touch)
+                    mul(k, touch, stiff)
+                    add(stiff, gp, stiff)                    # stiff = k touch + gp: d force / d delta on this piece
+                    mul(d, touch, damp)                      # damp = d touch
+                    mul(k_half, side, force)
+                    sub(force, tr, force)                    # force = k b/2 side - tau_r: the piece's constant part
+                    mul(stiff, delta, f0)
+                    sub(force, f0, f0)
+                    mul(damp, ddelta, tmp)
+                    sub(f0, tmp, f0)                         # f0 = force - stiff delta - damp ddelta
                     # halving is exact in binary floating point, so hm (f0 / 2 + x / 2) = (hm / 2) (f0 + x) and
                     # h (v / 2 + v1 / 2) = (h / 2) (v + v1) to the bit; the denominator is above 3/4 where
                     # theta = 0.5 resolves (hm h |stiff| < 1), so its floor of 0.25 never acts here
-                    v1 = (ddelta + hm2 * (f0 + (force - stiff * (delta + h_half * ddelta)))) / \
-                        (1.0 + hm2 * (damp + h_half * stiff))
-                    delta = delta + h_half * (ddelta + v1)
-                    ddelta = v1
+                    # v1 = (ddelta + hm2 (f0 + (force - stiff (delta + h/2 ddelta)))) / (1 + hm2 (damp + h/2 stiff))
+                    mul(h_half, ddelta, tmp)
+                    add(tmp, delta, tmp)
+                    mul(tmp, stiff, tmp)
+                    sub(force, tmp, tmp)
+                    add(tmp, f0, tmp)
+                    mul(tmp, hm2, tmp)
+                    add(tmp, ddelta, tmp)
+                    mul(h_half, stiff, den)
+                    add(den, damp, den)
+                    mul(den, hm2, den)
+                    add(den, 1.0, den)
+                    div(tmp, den, v1)
+                    # delta = delta + h/2 (ddelta + v1); ddelta = v1
+                    add(ddelta, v1, tmp)
+                    mul(tmp, h_half, tmp)
+                    add(delta, tmp, delta)
+                    ddelta, v1 = v1, ddelta
             else:
                 for _ in range(n_sub):
                     side = np.subtract(delta > half, delta < neg_half, dtype=float)
@@ -835,15 +893,17 @@ def _link_responses(rd: ResidualData) -> dict:
                     f0 = force - stiff * delta - damp * ddelta
                     th = np.where(hm * (damp + h * np.abs(stiff)) < 1.0, 0.5, 1.0)
                     one_minus_th = 1 - th
-                    v1 = (ddelta + hm * (one_minus_th * f0 + th * (force - stiff * (delta + h * one_minus_th * ddelta)))) \
+                    v_new = (ddelta + hm * (one_minus_th * f0 + th * (force - stiff * (delta + h * one_minus_th * ddelta)))) \
                         / np.maximum(1.0 + hm * th * (damp + h * th * stiff), 0.25)
-                    delta = delta + h * (one_minus_th * ddelta + th * v1)
-                    ddelta = v1
+                    delta = delta + h * (one_minus_th * ddelta + th * v_new)
+                    ddelta = v_new       # a new array: not the buffer v1 the other branch writes into
             states[i, 0], states[i, 1] = delta, ddelta
         dl, dd = states[:, 0], states[:, 1]
         excess = dl - np.clip(dl, -half, half)
-        out[t0:t0 + block] = -k * excess - d * dd * (excess != 0) - tr_b
-    return {j: (np.ascontiguousarray(out[:, owner == j]), grids[j]) for j in range(n)}
+        out_b = -k * excess - d * dd * (excess != 0) - tr_b
+        for j in range(n):
+            outs[j][t0:t0 + block] = out_b[:, owner == j]
+    return {j: (outs[j], grids[j]) for j in range(n)}
 
 
 class _Compliance(Term):

@@ -90,20 +90,52 @@ class ResidualData:
         shp = X.shape
         return np.ascontiguousarray(self.lowpass_series(X.reshape(shp[0], -1).T).T).reshape(shp)
 
-    def lowpass_series(self, XT: np.ndarray) -> np.ndarray:
+    def lowpass_series(self, XT: np.ndarray, runs=None) -> np.ndarray:
         """:meth:`lowpass` of M series given as the rows of XT (M, N), time along the last axis (the layout the
-        filter runs along without copying); returns (M, N). NaN counts as 0."""
+        filter runs along without copying); returns (M, N). NaN counts as 0. ``runs``: the stretches of XT's time
+        axis filtered each on its own (default: the recording's runs, ``signals.runs``; :meth:`lowpass_spans`'
+        spans laid end to end)."""
         if not np.isfinite(XT).all():
             XT = np.nan_to_num(XT)
+        sos = self._sos()
+        out = np.empty(XT.shape, dtype=XT.dtype)
+        for a, b in (self.signals.runs if runs is None else runs):
+            pad = min(3 * (2 * len(sos) + 1) * 4, b - a - 1)
+            out[:, a:b] = sosfiltfilt(sos, XT[:, a:b], axis=-1, padlen=max(pad, 0))
+        return out
+
+    def _sos(self) -> np.ndarray:
         sos = self.extra.get("sos")
         if sos is None:       # the torque's filter (Signals.filter_like_torque), designed once per recording
             st = self.signals.settings
             sos = self.extra["sos"] = butter(st.order, st.fc_acceleration_hz, btype="low", fs=self.fs, output="sos")
-        out = np.empty(XT.shape, dtype=XT.dtype)
+        return sos
+
+    MEMORY = 1e-24      # lowpass_spans: what the filter remembers of a sample this far back (of its peak response)
+
+    def lowpass_spans(self, rows: np.ndarray) -> list[tuple[int, int]] | None:
+        """Stretches [a, b) of the time axis whose filtering alone (:meth:`lowpass_series` with these as ``runs``)
+        gives :meth:`lowpass`'s values on ``rows`` ((N,) bool): each run cut to the rows in it plus the filter's
+        memory on either side (samples until its slowest pole has decayed to ``MEMORY``, at least 4 pads), never
+        beyond the run. Where a stretch ends at its run's end the filter starts there as on the whole run (the same
+        numbers); where it ends inside the run the start differs, but by less than ``MEMORY`` of the signal once it
+        reaches the rows: far below a double's rounding (the rounding then makes the two the same numbers, or a
+        unit in the last place apart). None where some of ``rows`` lie outside every run, or there are no rows (filter
+        the whole)."""
+        sos = self._sos()
+        r = max(float(np.max(np.abs(np.roots(sec[3:])))) for sec in sos)
+        reach = max(int(np.ceil(np.log(self.MEMORY) / np.log(r))), 4 * 3 * (2 * len(sos) + 1) * 4) if r > 0 else 0
+        spans, inside = [], 0
         for a, b in self.signals.runs:
-            pad = min(3 * (2 * len(sos) + 1) * 4, b - a - 1)
-            out[:, a:b] = sosfiltfilt(sos, XT[:, a:b], axis=-1, padlen=max(pad, 0))
-        return out
+            idx = np.flatnonzero(rows[a:b])
+            inside += len(idx)
+            if not len(idx):
+                continue
+            # rows further apart than twice the memory: separate stretches
+            cut = np.flatnonzero(np.diff(idx) > 2 * reach)
+            for lo, hi in zip(np.r_[idx[0], idx[cut + 1]], np.r_[idx[cut], idx[-1]]):
+                spans.append((max(a, a + lo - reach), min(b, a + hi + 1 + reach)))
+        return spans if spans and inside == int(rows.sum()) else None
 
 
 def model_cutoffs(fs: float, model: IdentifiedModel | None = None) -> FilterSettings:

@@ -134,7 +134,7 @@ class MismatchSearch:
                        for name, m in masks.items()}}
         return st
 
-    CACHE_BYTES = 3 * 2 ** 29     # weighted columns kept across ladder steps (1.5 GiB; beyond it they are rebuilt)
+    CACHE_BYTES = 2 ** 31         # weighted columns kept across ladder steps (2 GiB; beyond it they are rebuilt)
 
     def _fit_grid(self, rd: ResidualData, term: Term, j: int, motors: np.ndarray, sel_fit: np.ndarray,
                   rw: np.ndarray, w: np.ndarray, grid, key=None):

@@ -8,6 +8,8 @@
 * ThermalDrift's store of filtered heat columns (made once per search, not once per ladder step) gives the very
   numbers the default ``Term.grid_columns`` gives, and the search drops it when it ends.
 """
+import copy
+import dataclasses
 import json
 
 import numpy as np
@@ -140,3 +142,53 @@ def test_search_drops_the_terms_stores(rd):
     MismatchSearch(kinds=["thermal_drift"], max_terms=1, progress=progress).fit(rd)
     assert seen and "thermal_low" in seen[0], "the ladder should keep the thermal store between its steps"
     assert not keys & set(rd.extra)
+
+
+@pytest.mark.parametrize("j", [1, 3])
+def test_filtering_only_the_stretches_around_the_rows_gives_the_whole_runs_values(rd, j):
+    """ResidualData.lowpass_spans: filtering the stretches around the fit rows (each run cut to the rows plus the
+    filter's memory) gives, on those rows, what filtering the whole runs gives, to the rounding of the filter; the
+    stretches leave out what lies further than the memory from every row, and rows outside every run get None."""
+    rows = rd.mask[:, j] & rd.fit_rows
+    spans = rd.lowpass_spans(rows)
+    runs = rd.signals.runs
+    keep = np.concatenate([np.arange(a, b) for a, b in spans])
+    assert all(any(ra <= a < b <= rb for ra, rb in runs) for a, b in spans)
+    assert rows[keep].sum() == rows.sum()
+    # far from every row nothing is filtered: the last of the runs' samples after the last row and its memory
+    last = np.flatnonzero(rows)[-1]
+    run_end = next(rb for ra, rb in runs if ra <= last < rb)
+    reach = max(b for a, b in spans) - last - 1
+    assert 0 < reach < run_end - last - 1, "the recording leaves no room after the fit rows to test the cut"
+    assert not np.isin(np.arange(last + reach + 1, run_end), keep).any()
+    X = np.random.default_rng(j).normal(size=(3, len(rd.t)))
+    whole = rd.lowpass_series(X)[:, rows]
+    ends = np.cumsum([b - a for a, b in spans])
+    part = rd.lowpass_series(X[:, keep], list(zip(np.r_[0, ends[:-1]], ends)))[:, rows[keep]]
+    np.testing.assert_allclose(part, whole, rtol=0, atol=1e-12 * np.abs(whole).max())
+    # a row the runs do not cover (a lost stretch): no spans, the caller filters the whole
+    cut = copy.copy(rd)
+    cut.signals = dataclasses.replace(rd.signals, runs=[(runs[0][0] + 10, runs[0][1])] + list(runs[1:]))
+    some = np.zeros(len(rd.t), dtype=bool)
+    some[runs[0][0] + 20] = True
+    assert cut.lowpass_spans(some) is not None
+    some[runs[0][0] + 5] = True
+    assert cut.lowpass_spans(some) is None
+    assert rd.lowpass_spans(np.zeros(len(rd.t), dtype=bool)) is None
+
+
+def test_docs_speed_figures_are_the_committed_bench_runs():
+    """docs/diagnosis.md's before -> after figures of the spans round are the totals scripts/bench_diagnose_speed.py
+    printed in the committed runs (taken in turn: before, after, before, after)."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    runs = (root / "docs/bench/diagnose-speed-2026-11-24-spans.txt").read_text()
+    totals = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", runs, flags=re.M)
+    assert len(totals) == 4
+    (b1, b1m, b1x), (a1, a1m, a1x), (b2, b2m, b2x), (a2, a2m, a2x) = totals
+    doc = " ".join((root / "docs/diagnosis.md").read_text().split())
+    assert f"total {b1} / {b2} -> {a1} / {a2} CPU s, per 4 minutes {b1m} / {b2m} -> {a1m} / {a2m}" in doc
+    assert f"({b1x}x / {b2x}x -> {a1x}x / {a2x}x the goal" in doc
+    assert float(a1) < float(b1) and float(a2) < float(b2)
