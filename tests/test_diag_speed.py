@@ -191,4 +191,7 @@ def test_docs_speed_figures_are_the_committed_bench_runs():
     doc = " ".join((root / "docs/diagnosis.md").read_text().split())
     assert f"total {b1} / {b2} -> {a1} / {a2} CPU s, per 4 minutes {b1m} / {b2m} -> {a1m} / {a2m}" in doc
     assert f"({b1x}x / {b2x}x -> {a1x}x / {a2x}x the goal" in doc
+    readme = " ".join((root / "README.md").read_text().split())
+    assert f"total {b1} / {b2} -> {a1} / {a2} CPU s, per 4 minutes {b1m} / {b2m} -> {a1m} / {a2m}" in readme
+    assert f"({b1x}x / {b2x}x -> {a1x}x / {a2x}x the goal: not met" in readme
     assert float(a1) < float(b1) and float(a2) < float(b2)
