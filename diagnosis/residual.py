@@ -274,18 +274,20 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
     del W
     rigid_motor = np.full((N, n), np.nan)
     rigid_motor[rows] = W_rigid[rows] @ pi[:nl]
+    rigid_joint = np.full((N, n), np.nan)
+    rigid_joint[rows] = rigid_motor[rows] @ np.linalg.inv(K)        # tau_joint = K^-T tau_motor
+    # motor i's rest speed: min_speed at the joint, carried to the motor (``mask`` drops the rows below it)
+    v_motor = float(min_speed) / np.max(np.abs(K), axis=0)
+    at_rest = np.abs(np.nan_to_num(sig.dq_motor)) < v_motor[None, :]
     # at rest the model's friction holds the applied torque, up to f_s (eq. 2-3), instead of B v + f_c sgn v
-    rigid_side = rigid_motor[rows] @ np.linalg.inv(K) if side == "joint" else rigid_motor[rows]
-    v_rest = (np.full(n, float(min_speed)) if side == "joint"
-              else float(min_speed) / np.max(np.abs(K), axis=0))          # the speed below which ``mask`` drops rows
+    rigid_side = rigid_joint[rows] if side == "joint" else rigid_motor[rows]
+    v_rest = np.full(n, float(min_speed)) if side == "joint" else v_motor
     held = hold_at_rest(sig.tau_raw[rows] - rigid_side - (pred_side[rows] - fric_side[rows]), fric_side[rows],
                         v_side, v_rest, model.friction_static, model.friction_coulomb)
     pred_side[rows] += held - fric_side[rows]
     fric_side[rows] = held
     tau_pred = to_motor(pred_side)
     tau_pred[rows] += rigid_motor[rows]
-    rigid_joint = np.full((N, n), np.nan)
-    rigid_joint[rows] = rigid_motor[rows] @ np.linalg.inv(K)        # tau_joint = K^-T tau_motor
     friction = to_motor(fric_side)
     # parallel filtering: the prediction passes the torque's filter too
     tau_pred_f = np.full((N, n), np.nan)
@@ -296,8 +298,7 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
 
     t = sig.t - sig.t[0]
     keep = sig.keep & good
-    v_motor = float(min_speed) / np.max(np.abs(K), axis=0)
-    mask = keep[:, None] & (np.abs(np.nan_to_num(sig.dq_motor)) >= v_motor[None, :])
+    mask = keep[:, None] & ~at_rest
     fit, sel, hold, note = split_rows(log, sig.t, keep, holdout_trial, fit_trials, report_fraction)
     counts = {name: int((mask & rr[:, None]).any(axis=1).sum()) for name, rr in
               (("fit", fit), ("select", sel), ("report", hold))}
@@ -314,4 +315,4 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
                         fit_rows=fit, holdout_rows=hold, K=K, joints=list(drives.joints), arm=arm, signals=sig,
                         split_note=note, extra={"model": model, "min_speed": min_speed},
                         select_rows=sel, min_speed_motor=v_motor, torque_side=side,
-                        at_rest=np.abs(np.nan_to_num(sig.dq_motor)) < v_motor[None, :])
+                        at_rest=at_rest)
