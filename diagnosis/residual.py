@@ -29,6 +29,7 @@ from identification.regressor import arm_model, build_regressor, standard_vector
 from identification.signals import (NYQUIST_MARGIN, PAPER_FC_ACCELERATION_HZ, PAPER_FC_VELOCITY_HZ, FilterSettings,
                                     Signals, choose_cutoffs, from_log)
 from identification.trials import trial_spans
+from js2spec.drives import at_rest, motor_rest_speed
 from js2spec.errors import Js2Error
 from js2spec.model import IdentifiedModel
 
@@ -225,7 +226,7 @@ def hold_at_rest(applied: np.ndarray, friction: np.ndarray, velocity: np.ndarray
     them into the slow rows next to them: a sliding law there smears a friction the arm did not have (the
     excess looked like a Stribeck curve on clean recordings)."""
     limit = np.where(np.isfinite(f_static), f_static, f_coulomb)
-    rest = np.abs(np.nan_to_num(velocity)) < v_rest[None, :]
+    rest = at_rest(velocity, v_rest[None, :])
     held = np.clip(np.nan_to_num(applied), -limit[None, :], limit[None, :])
     return np.where(rest & np.isfinite(applied), held, friction)
 
@@ -276,9 +277,10 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
     rigid_motor[rows] = W_rigid[rows] @ pi[:nl]
     rigid_joint = np.full((N, n), np.nan)
     rigid_joint[rows] = rigid_motor[rows] @ np.linalg.inv(K)        # tau_joint = K^-T tau_motor
-    # motor i's rest speed: min_speed at the joint, carried to the motor (``mask`` drops the rows below it)
-    v_motor = float(min_speed) / np.max(np.abs(K), axis=0)
-    at_rest = np.abs(np.nan_to_num(sig.dq_motor)) < v_motor[None, :]
+    # motor i's rest speed: min_speed at the joint, carried to the motor (js2spec.drives, the rule hil_sim's replay
+    # holds by too); ``mask`` drops the rows below it
+    v_motor = motor_rest_speed(min_speed, K)
+    rest = at_rest(sig.dq_motor, v_motor[None, :])
     # at rest the model's friction holds the applied torque, up to f_s (eq. 2-3), instead of B v + f_c sgn v
     rigid_side = rigid_joint[rows] if side == "joint" else rigid_motor[rows]
     v_rest = np.full(n, float(min_speed)) if side == "joint" else v_motor
@@ -298,7 +300,7 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
 
     t = sig.t - sig.t[0]
     keep = sig.keep & good
-    mask = keep[:, None] & ~at_rest
+    mask = keep[:, None] & ~rest
     fit, sel, hold, note = split_rows(log, sig.t, keep, holdout_trial, fit_trials, report_fraction)
     counts = {name: int((mask & rr[:, None]).any(axis=1).sum()) for name, rr in
               (("fit", fit), ("select", sel), ("report", hold))}
@@ -315,4 +317,4 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
                         fit_rows=fit, holdout_rows=hold, K=K, joints=list(drives.joints), arm=arm, signals=sig,
                         split_note=note, extra={"model": model, "min_speed": min_speed},
                         select_rows=sel, min_speed_motor=v_motor, torque_side=side,
-                        at_rest=at_rest)
+                        at_rest=rest)

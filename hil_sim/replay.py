@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from js2spec.drives import at_rest, motor_rest_speed
 from js2spec.errors import ConfigError, Js2Error
 
 from .effects import parse_effects
@@ -114,6 +115,7 @@ def inverse_replay(plant: Plant, t, q_motor, dq_motor, ddq_motor, tau_recorded=N
     hold = tau_recorded is not None and v_rest is not None
     if hold:
         tau_recorded, v_rest = np.asarray(tau_recorded, float), np.asarray(v_rest, float)
+        resting = at_rest(dq_motor, v_rest)
     t = np.asarray(t, float)
     N, n = q_motor.shape
     d, fr = plant.dyn, plant.friction
@@ -180,7 +182,7 @@ def inverse_replay(plant: Plant, t, q_motor, dq_motor, ddq_motor, tau_recorded=N
         if plant.has_load_offset:
             tau = tau + plant.load_offset                  # torque_offset: a constant load the drive carries
         if hold:
-            rest = (np.abs(dqm) < v_rest) & np.isfinite(tau_recorded[s])
+            rest = resting[s] & np.isfinite(tau_recorded[s])
             if rest.any():
                 other = tau - friction_prev
                 held = np.clip(tau_recorded[s] - other, -fs, fs)
@@ -375,7 +377,7 @@ def replay_recording(recording, model_path, effects_path=None, min_speed: float 
     off = model.torque_offset
     tau_rec_motor = to_motor_side(sig.tau, drives, off)
     tau_held = to_motor_side(sig.tau_raw, drives, off)           # what friction holds at rest (unfiltered)
-    v_rest = float(min_speed) / np.max(np.abs(K), axis=0)      # motor side: the diagnosis' rest threshold
+    v_rest = motor_rest_speed(min_speed, K)                     # motor side: the diagnosis' rest threshold
     runs, fwd = [], []
     for eff in ([[]] + ([effects] if effects_path is not None else [])):
         plant = model_plant(model, drives, eff, effects_path)

@@ -107,6 +107,21 @@ class DrivesConfig:
         return yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=None)
 
 
+def motor_rest_speed(min_speed_joint: float, gear_ratio_matrix) -> np.ndarray:
+    """Each motor's rest speed (rad/s at the motor) for a rest speed ``min_speed_joint`` given at the joints
+    (rad/s): min_speed / max_j |K_ji|, the motor speed at which the joint it drives fastest turns at min_speed. So
+    one joint-side number suits a 1:100 harmonic drive (0.01 rad/s at the joint: 1 rad/s at the motor) and a direct
+    drive alike. Below it friction holds the applied torque up to f_s (eq. 2-3): the diagnosis leaves those
+    samples out and predicts the held torque there, and ``hil_sim``'s replay holds them the same way."""
+    return float(min_speed_joint) / np.max(np.abs(np.asarray(gear_ratio_matrix, dtype=float)), axis=0)
+
+
+def at_rest(speed: np.ndarray, rest_speed: np.ndarray) -> np.ndarray:
+    """Where each axis is at rest: |speed| below its ``rest_speed`` (e.g. :func:`motor_rest_speed`), element-wise
+    over (N, n) or (n,) speeds; a NaN speed (a lost sample) counts as 0, at rest."""
+    return np.abs(np.nan_to_num(speed)) < rest_speed
+
+
 def parse_vector(d: dict, key: str, n: int, source, *, required: bool, positive: bool = False,
                  nonneg: bool = False, default=None, integer: bool = False, per: str = "joint") -> np.ndarray | None:
     """One per-joint list of a config mapping, validated; errors name ``source`` and ``key``.

@@ -271,3 +271,36 @@ def test_stribeck_finding_replays_with_its_fitted_breakaway(tmp_path):
     p0, p1 = np.array(fw["model"]["position_rms"]), np.array(fw["model_effects"]["position_rms"])
     assert p0[1] == pytest.approx(0.26e-3, rel=0.3) and p1[1] == pytest.approx(0.10e-3, rel=0.4)
     np.testing.assert_allclose(p1[3:], p0[3:], rtol=0.1)        # wrist: not ahead, within 10 % either way
+
+
+def test_inverse_replay_holds_exactly_where_the_shared_rest_rule_says():
+    """inverse_replay with a recorded torque holds friction on the samples js2spec.drives.at_rest marks (the
+    diagnosis' rule: motor_rest_speed of a joint-side min_speed), and only there: a standing motor gets the
+    recorded torque (within f_s), one creeping below its rest speed moves towards it, and at or above the rest
+    speed (the threshold itself included) the hold changes nothing."""
+    from hil_sim.plant import Plant
+    from hil_sim.replay import inverse_replay
+    from js2spec.drives import at_rest, motor_rest_speed
+    from js2spec.robot import load_robot
+
+    robot = load_robot("js2")
+    plant = Plant(robot, seed=1)
+    v_rest = motor_rest_speed(0.01, robot.drives.K)
+    rng = np.random.default_rng(7)
+    N = 200
+    kind = rng.integers(0, 4, (N, 6))            # 0 standing, 1 creeping below v_rest, 2 at v_rest, 3 moving
+    scale = np.choose(kind, [np.zeros((N, 6)), rng.uniform(0.2, 0.99, (N, 6)), np.ones((N, 6)),
+                             rng.uniform(1.01, 3.0, (N, 6))])
+    dq = rng.choice([-1.0, 1.0], (N, 6)) * scale * v_rest
+    q = rng.uniform(-20, 20, (N, 6))
+    ddq = rng.normal(0, 5, (N, 6))
+    t = np.arange(N) * 0.002
+    free = inverse_replay(plant, t, q, dq, ddq).tau_motor
+    tau_rec = free + rng.uniform(-0.3, 0.3, (N, 6)) * plant.friction.coulomb
+    held = inverse_replay(plant, t, q, dq, ddq, tau_recorded=tau_rec, v_rest=v_rest).tau_motor
+    rest = at_rest(dq, v_rest)
+    np.testing.assert_array_equal(rest, kind <= 1)
+    np.testing.assert_allclose(held[kind == 0], tau_rec[kind == 0], rtol=0, atol=1e-12)
+    creep = kind == 1
+    assert np.all(np.abs(held - tau_rec)[creep] < np.abs(free - tau_rec)[creep])
+    np.testing.assert_array_equal(held[~rest], free[~rest])

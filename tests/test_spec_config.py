@@ -84,3 +84,20 @@ def test_unknown_robot_lists_known_ones():
 def test_parse_drives_rejects_non_mapping():
     with pytest.raises(ConfigError, match="mapping"):
         parse_drives([1, 2, 3], "x.yaml")
+
+
+def test_rest_speed_is_the_joint_side_min_speed_at_each_motor():
+    """js2spec.drives.motor_rest_speed / at_rest: the one rest rule of the diagnosis and hil_sim's replay. On the
+    Js-2 (1:100 ... 1:50 gears, a differential wrist) 0.01 rad/s at the joints is 1 rad/s at a 1:100 motor; a motor
+    turning at its rest speed moves its fastest joint at exactly min_speed; a direct drive keeps the number."""
+    from js2spec.drives import at_rest, motor_rest_speed
+
+    K = load_robot("js2").drives.K
+    v = motor_rest_speed(0.01, K)
+    np.testing.assert_allclose(v, [1.0, 1.0, 0.8, 0.5, 1.0, 1.0], rtol=1e-12)
+    np.testing.assert_allclose(np.max(np.abs(K * v[None, :]), axis=0), 0.01, rtol=1e-12)
+    assert np.all(np.abs(K[:, 4:] * v[None, 4:]) <= 0.01 * (1 + 1e-12))    # wrist: no joint faster than min_speed
+    np.testing.assert_array_equal(motor_rest_speed(0.02, np.eye(3)), [0.02, 0.02, 0.02])
+    speed = np.array([v * (1 - 1e-9), -v, -0.999 * v, 1.5 * v])
+    speed[2, 0] = np.nan                                           # a lost sample
+    np.testing.assert_array_equal(at_rest(speed, v), np.repeat([[True], [False], [True], [False]], 6, axis=1))
