@@ -584,13 +584,17 @@ def join_logs(logs: list[Js2Log], gap_cycles: int = 50) -> Js2Log:
 
 def damage_notes(paths: Iterable[str | Path]) -> list[str]:
     """'<path>: <what was lost>' for each damaged log among `paths` (truncated, corrupt, repaired): what a CLI adds
-    to an error met on such a log ("no velocity trial" may only mean the trial was in the lost part)."""
+    to an error met on such a log ("no velocity trial" may only mean the trial was in the lost part). Files that do
+    not start with MCAP's magic bytes are not logs with a lost part (read_log refuses them as not MCAP): no note."""
     out = []
     for p in paths:
         p = Path(p)
         if not p.is_file():
             continue
         try:
+            with open(p, "rb") as f:
+                if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+                    continue          # not an MCAP file at all (read_log says so): nothing was lost from it
             scan = McapScan(p)
             for rec in scan.records():
                 if rec.__class__.__name__ == "Metadata" and rec.name == "js2_repair":

@@ -165,6 +165,30 @@ def test_diagnose_bad_recording(tmp_path, capsys, good_log, kind):
     assert out.err.startswith("js2-diagnose: error:")
 
 
+@pytest.mark.parametrize("kind", ["random bytes", "non-UTF-8", "text renamed .mcap", "cut"])
+def test_diagnose_says_truncated_only_for_a_truncated_mcap(tmp_path, capsys, good_log, kind):
+    """A file that is not MCAP at all (wrong magic bytes) is refused as such, with no note that it was cut (which
+    would contradict it); a genuinely cut log still gets the note that what is missing may be in the lost part."""
+    from diagnosis.cli import main
+    p = tmp_path / "rec.mcap"
+    if kind == "text renamed .mcap":
+        p.write_text("t,q1,q2,tau1,tau2\n0.0,0.1,0.2,0.0,0.0\n")
+    elif kind == "cut":
+        data = Path(good_log).read_bytes()
+        p.write_bytes(data[: len(data) // 8])
+    else:
+        BAD_FILES[kind](p)
+    model = tmp_path / "model.yaml"        # loads; the recording is read before anyone compares the two
+    model.write_text("joints: [j1]\nfriction: {static: [0.0], coulomb: [0.0], viscous: [0.0]}\n"
+                     "motor_inertia: [0.0]\nbase_parameters: {names: [], values: [], std: []}\n")
+    rc = main([str(model), str(p), "-o", str(tmp_path / "d"), "-q"])
+    line = _one_line(capsys, rc, "js2-diagnose", p).replace(str(p), "FILE")    # the test's name is in the path
+    if kind == "cut":
+        assert "truncated" in line and "lost part" in line, line
+    else:
+        assert "not an MCAP file" in line and "truncated" not in line and "lost part" not in line, line
+
+
 @pytest.mark.parametrize("name", ["robot.urdf", "drives.yaml", "sim_truth.yaml", "drives.eds"])
 def test_sim_bad_robot_folder(tmp_path, capsys, name):
     from hil_sim.cli import main

@@ -208,6 +208,16 @@ def test_damage_notes_name_the_damaged_logs(tmp_path, robot):
     cut.write_bytes(good.read_bytes()[:len(good.read_bytes()) // 2])
     notes = damage_notes([good, cut, tmp_path / "missing.mcap"])
     assert len(notes) == 1 and notes[0].startswith(f"{cut}: truncated")
+    # files that are not MCAP at all (wrong magic bytes) get no note: nothing was lost from them, and "truncated:
+    # ... every record in it is complete" would contradict read_log's "not an MCAP file"
+    others = {"random.mcap": np.random.default_rng(3).integers(0, 256, 4096, dtype=np.uint8).tobytes(),
+              "text.mcap": b"time,q1,q2\n0.0,0.1,0.2\n", "short.mcap": b"abc",
+              "magic_only.mcap": good.read_bytes()[:8]}
+    for name, data in others.items():
+        (tmp_path / name).write_bytes(data)
+    notes = damage_notes([tmp_path / name for name in others] + [cut])
+    assert len(notes) == 2 and all(n.startswith(f"{tmp_path / 'magic_only.mcap'}: truncated") or
+                                   n.startswith(f"{cut}: truncated") for n in notes), notes
 
 
 def test_join_logs_makes_one_session_of_several_files(tmp_path, robot):
