@@ -57,6 +57,41 @@ def test_grid_columns_are_the_band_columns_of_every_term(rd, j):
                                        err_msg=f"{term.kind} on joint {j}, grid point {h}")
 
 
+@pytest.mark.parametrize("j", [1, 4])
+def test_columns_vanish_at_rest_as_np_where_would_make_them(rd, j):
+    """Term.__init_subclass__'s hold at rest writes its zeros into the columns in place: for every term of the
+    library the same arrays, bit for bit, as np.where(at_rest, 0, columns); a ``columns`` that hands out an array
+    it does not own (a read-only store) gets a copy zeroed, the store is left as it was."""
+    from diagnosis.library import LIBRARY, Term
+
+    assert rd.at_rest[:, j].any() and not rd.at_rest[:, j].all()
+    bites = []
+    for term in LIBRARY:
+        if not term.per_joint and j not in term.joints(rd):
+            continue
+        h = term.grid(rd, j)[0]
+        raw = type(term).columns.__wrapped__(term, rd, j, h)
+        want = np.where(rd.at_rest[:, :, None], 0.0, raw)
+        got = term.columns(rd, j, h)
+        assert got.shape == want.shape and np.array_equal(got, want), term.kind
+        if np.any(raw[rd.at_rest] != 0):
+            bites.append(term.kind)
+    assert len(bites) >= 8, f"only {bites} have something to zero at rest: the test checks little"
+
+    store = np.ones((len(rd.t), rd.n, 1))
+    store.setflags(write=False)
+
+    class Stored(Term):
+        kind = "stored"
+
+        def columns(self, rd_, j_, h_):
+            return store
+
+    got = Stored().columns(rd, j, None)
+    assert got is not store and np.array_equal(got, np.where(rd.at_rest[:, :, None], 0.0, 1.0))
+    assert np.all(store == 1.0)
+
+
 def test_search_caches_change_nothing(rd):
     from diagnosis.search import MismatchSearch
 
