@@ -212,17 +212,20 @@ def test_filtering_only_the_stretches_around_the_rows_gives_the_whole_runs_value
     assert rd.lowpass_spans(np.zeros(len(rd.t), dtype=bool)) is None
 
 
-def test_docs_speed_figures_are_the_committed_bench_runs():
-    """docs/diagnosis.md's before -> after figures of the spans round are the totals scripts/bench_diagnose_speed.py
-    printed in the committed runs (taken in turn: before, after, before, after)."""
+@pytest.mark.parametrize("runs_file", ["diagnose-speed-2026-11-24-spans.txt", "diagnose-speed-2026-11-24-held.txt"])
+def test_docs_speed_figures_are_the_committed_bench_runs(runs_file):
+    """docs/diagnosis.md's and README's before -> after figures of a speed round are the totals
+    scripts/bench_diagnose_speed.py printed in its committed runs (taken in turn: before, after, before, after)."""
     import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
-    runs = (root / "docs/bench/diagnose-speed-2026-11-24-spans.txt").read_text()
+    runs = (root / "docs/bench" / runs_file).read_text()
     totals = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", runs, flags=re.M)
     assert len(totals) == 4
     (b1, b1m, b1x), (a1, a1m, a1x), (b2, b2m, b2x), (a2, a2m, a2x) = totals
+    assert re.findall(r"^## run (\d), (before|after)", runs, flags=re.M) == [
+        ("1", "before"), ("1", "after"), ("2", "before"), ("2", "after")]
     doc = " ".join((root / "docs/diagnosis.md").read_text().split())
     assert f"total {b1} / {b2} -> {a1} / {a2} CPU s, per 4 minutes {b1m} / {b2m} -> {a1m} / {a2m}" in doc
     assert f"({b1x}x / {b2x}x -> {a1x}x / {a2x}x the goal" in doc
