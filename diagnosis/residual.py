@@ -47,7 +47,7 @@ class ResidualData:
     fs: float
     q_motor: np.ndarray           # rad
     dq_motor: np.ndarray          # rad/s
-    ddq_motor: np.ndarray         # rad/s^2
+    ddq_motor: np.ndarray         # rad/s^2, before the torque's filter (every column passes it: ``lowpass``)
     q_joint: np.ndarray           # rad, K q_motor + offset
     tau_meas: np.ndarray          # N*m measured, filtered like the acceleration
     tau_meas_raw: np.ndarray      # N*m measured, unfiltered
@@ -71,6 +71,7 @@ class ResidualData:
     min_speed_motor: np.ndarray | None = None   # (n,) rad/s motor: the per-motor speed threshold of ``mask``
     torque_side: str = "motor"    # side the log measured (the arrays here are all motor side)
     at_rest: np.ndarray | None = None   # (N, n) bool: motor slower than its min_speed_motor threshold (friction holds)
+    torque_step_motor: np.ndarray | None = None   # (n,) N*m: one count of the drive's current read-back (motor side)
 
     @property
     def n(self) -> int:
@@ -217,6 +218,16 @@ def split_rows(log, t: np.ndarray, keep: np.ndarray, holdout_trial: str = "valid
     return fit, sel, hold, note + " (fit : select = 2 : 1, interleaved time blocks)"
 
 
+def torque_step(drives) -> np.ndarray | None:
+    """One count of each drive's current read-back as a motor torque (N*m): CiA 402 reports the current in per-mille
+    of the rated current (0x6078 / 0x6075), so a count is k_t I_rated / 1000. None for joint-side torques or when the
+    drives do not give their rated current (the log then says nothing about its resolution)."""
+    rated = getattr(drives, "rated_current", None)
+    if rated is None or str(drives.torque_side) != "motor":
+        return None
+    return np.abs(np.asarray(drives.torque_constant, float)) * np.asarray(rated, float) / 1000.0
+
+
 def hold_at_rest(applied: np.ndarray, friction: np.ndarray, velocity: np.ndarray, v_rest: np.ndarray,
                  f_static: np.ndarray, f_coulomb: np.ndarray) -> np.ndarray:
     """The model's friction with its breakaway level (eq. 2-3): where a motor is at rest (|velocity| below
@@ -250,7 +261,10 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
     K = np.asarray(drives.gear_ratio_matrix, float)
     good = np.all(np.isfinite(sig.q_motor), axis=1) & np.all(np.isfinite(sig.tau), axis=1)
     rows = np.flatnonzero(good)
-    qm, dqm, ddqm = sig.q_motor[rows], sig.dq_motor[rows], sig.ddq_motor[rows]
+    # the prediction is filtered like the torque below (parallel filtering), so it is made from the acceleration
+    # before that filter, as identification's regressor is (Signals.acceleration_unfiltered)
+    ddq_motor = sig.acceleration_unfiltered()
+    qm, dqm, ddqm = sig.q_motor[rows], sig.dq_motor[rows], ddq_motor[rows]
     W = build_regressor(arm, qm, dqm, ddqm)           # on the log's torque side
     pi = standard_vector(arm, motor_inertia=model.motor_inertia, viscous=model.friction_viscous,
                          coulomb=model.friction_coulomb)
@@ -310,11 +324,12 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
                              + f" faster than {min_speed:g} rad/s at a joint); record a longer motion, or lower "
                                "--min-speed")
     return ResidualData(log_path=str(log.path), t=t, fs=sig.fs, q_motor=sig.q_motor, dq_motor=sig.dq_motor,
-                        ddq_motor=sig.ddq_motor, q_joint=arm.joint_from_motor(sig.q_motor), tau_meas=tau_meas,
+                        ddq_motor=ddq_motor, q_joint=arm.joint_from_motor(sig.q_motor), tau_meas=tau_meas,
                         tau_meas_raw=tau_meas_raw, tau_pred=tau_pred_f, tau_pred_raw=tau_pred,
                         W_rigid_motor=W_rigid, tau_rigid_joint=rigid_joint,
                         tau_rigid_motor=rigid_motor, friction_pred=friction, motor_current=current, mask=mask,
                         fit_rows=fit, holdout_rows=hold, K=K, joints=list(drives.joints), arm=arm, signals=sig,
                         split_note=note, extra={"model": model, "min_speed": min_speed},
                         select_rows=sel, min_speed_motor=v_motor, torque_side=side,
+                        torque_step_motor=torque_step(drives),
                         at_rest=rest)

@@ -11,10 +11,12 @@ Per candidate (term, joint):
 Once a candidate is accepted, its coefficients are estimated again on FIT + SELECT (hyper-parameter kept).
 
 The ladder: candidates are ranked by select gain over all motors; the search walks down the ranking and accepts the
-first that passes every test (plausible parameters; fit and select gain on its own motors >= ``min_gain``; select
-gain over all motors >= ``min_gain_all``; for a term named on a joint that reaches every motor through the inertia
-matrix (``Term.own_motor``: elasticity, backlash), select gain on that joint's own motor >= ``min_gain``; and the
-null below), adds its torque to the model and ranks again, until
+first that passes every test (plausible parameters; fit and select gain on its own motors >= ``min_gain`` -- for a
+term named on a joint that reaches every motor through the inertia matrix (``Term.own_motor``: elasticity,
+backlash) its fit, select and report gains are that joint's own motor's, as it is fitted on all of them but
+named on one; select gain over all motors >= ``min_gain_all``; where the term asks for it (``Term.min_counts``: a
+torque offset), a torque of at least that many counts of the drive's current read-back; and the null below), adds
+its torque to the model and ranks again, until
 no candidate passes (at most ``max_terms`` terms) — a failing first-ranked candidate never hides a passing one.
 
 A second null the data give, for a term that ties the residual to another recorded signal (``Term.shifted_columns``:
@@ -51,6 +53,8 @@ class Scored:
     note: str = ""               # why it was named instead of the candidate the ladder reached (Term.resolve)
     term: Term | None = None     # the library term that made it (a kind may be tried in two bands)
     select_gain_own: float = float("nan")   # select rows, motor j's alone (the joint the term is named on)
+    counts: float = float("nan")             # RMS of the term's torque on the select rows, in counts of the drive's
+                                             # current read-back, on the motor where it is largest
 
     def row(self, joints) -> dict:
         f = self.fitted
@@ -265,12 +269,28 @@ class MismatchSearch:
         eff, summary, ok, why = term.effect(rd, j, h, coef, std)
         fitted = Fitted(kind=term.kind, joint=j, hyper=h, coef=coef, coef_std=std, effect=eff, summary=summary,
                         plausible=bool(ok), why_not=why)
-        return Scored(fitted=fitted, fit_gain=gain(sums(old_w, sel_fit), sums(new_w, sel_fit)),
-                      select_gain=gain(st["s0"]["select_rows"][motors], s1["select_rows"]),
+        # a term named on one joint that reaches every motor through the inertia matrix (``Term.own_motor``:
+        # elasticity, backlash) is fitted on all of them but judged on the joint it names: its fit and select gains
+        # are motor j's alone (over six motors, five of which it barely moves, a 48 % cut on its own motor reads 8 %)
+        judged = [list(motors).index(j)] if term.own_motor and j in motors else slice(None)
+        return Scored(fitted=fitted, fit_gain=gain(sums(old_w, sel_fit)[judged], sums(new_w, sel_fit)[judged]),
+                      select_gain=gain(st["s0"]["select_rows"][motors][judged], s1["select_rows"][judged]),
                       select_gain_all=gain(st["s0"]["select_rows"], s_all),
-                      holdout_gain=gain(st["s0"]["holdout_rows"][motors], s1["holdout_rows"]),
+                      holdout_gain=gain(st["s0"]["holdout_rows"][motors][judged], s1["holdout_rows"][judged]),
                       rms_before=st["rms"].copy(), rms_after=rms_after,
-                      band=band, term=term, select_gain_own=gain(s_own, s_own1))
+                      band=band, term=term, select_gain_own=gain(s_own, s_own1),
+                      counts=self._counts(rd, rows["select_rows"], motors, contrib))
+
+    @staticmethod
+    def _counts(rd: ResidualData, select: np.ndarray, motors, contrib: np.ndarray) -> float:
+        """RMS of a term's torque over the select rows in counts of each motor's current read-back
+        (``ResidualData.torque_step_motor``), the largest over its motors; nan when the log does not give it."""
+        step = getattr(rd, "torque_step_motor", None)
+        if step is None:
+            return float("nan")
+        rms = _rms(contrib, select[:, motors])
+        c = rms / np.asarray(step, float)[motors]
+        return float(np.nanmax(c)) if np.isfinite(c).any() else float("nan")
 
     def _why_rejected(self, s: Scored) -> str:
         if not s.fitted.plausible:
@@ -281,6 +301,10 @@ class MismatchSearch:
             return f"fit gain {s.fit_gain:.1%} < {self.min_gain:.0%}"
         if s.select_gain_all < self.min_gain_all:
             return f"select gain over all motors {s.select_gain_all:.1%} < {self.min_gain_all:.0%}"
+        floor = s.term.min_counts if s.term is not None else 0.0
+        if floor > 0 and np.isfinite(s.counts) and s.counts < floor:
+            return (f"its torque is {s.counts:.2f} count of the drive's current read-back (RMS, select rows; "
+                    f"< {floor:g}): within the identified model's own precision, not physics to name")
         if s.term is not None and s.term.own_motor and s.select_gain_own < self.min_gain:
             return (f"select gain on motor {s.fitted.joint + 1} itself {s.select_gain_own:.1%} < {self.min_gain:.0%}: "
                     "what it explains is on other motors")

@@ -378,10 +378,12 @@ def replay_recording(recording, model_path, effects_path=None, min_speed: float 
     tau_rec_motor = to_motor_side(sig.tau, drives, off)
     tau_held = to_motor_side(sig.tau_raw, drives, off)           # what friction holds at rest (unfiltered)
     v_rest = motor_rest_speed(min_speed, K)                     # motor side: the diagnosis' rest threshold
+    # filtered like the torque below: made from the acceleration before that filter (as the diagnosis predicts)
+    ddq_motor = sig.acceleration_unfiltered()
     runs, fwd = [], []
     for eff in ([[]] + ([effects] if effects_path is not None else [])):
         plant = model_plant(model, drives, eff, effects_path)
-        rep = inverse_replay(plant, sig.t, sig.q_motor, sig.dq_motor, sig.ddq_motor,
+        rep = inverse_replay(plant, sig.t, sig.q_motor, sig.dq_motor, ddq_motor,
                              tau_recorded=tau_held if hold_at_rest else None, v_rest=v_rest)
         runs.append(to_log_side(rep.tau_motor, drives, off))
         if forward:

@@ -156,3 +156,59 @@ def test_at_rest_the_model_friction_holds_the_applied_torque_up_to_breakaway():
                          [-0.03, -0.03],     # the second motor turns: its sliding friction stays
                          [0.03, 0.01]])      # an unknown velocity counts as rest (its rows are never scored)
     assert np.allclose(held, expected)
+
+
+@pytest.mark.parametrize("fs", [250.0, 500.0, 1000.0])
+def test_the_prediction_is_filtered_once_like_the_torque(fs):
+    """Parallel filtering: the torque is filtered once at 7 Hz, so the prediction must be made from the acceleration
+    before that filter and then filtered once (as identification builds its regressor). A prediction from
+    ``ddq_motor`` (already 7 Hz) filtered again has its inertial part filtered twice: several % low at 5 Hz, the
+    shape of a joint elasticity's lag on every motor of a clean arm."""
+    from identification.signals import FilterSettings, process
+
+    t = np.arange(int(20 * fs)) / fs
+    w = 2 * np.pi * np.array([1.0, 5.0])
+    q = np.stack([0.3 * np.sin(w[0] * t) + 0.05 * np.sin(w[1] * t)], axis=1)          # rad, motor side
+    ddq_true = -(0.3 * w[0] ** 2 * np.sin(w[0] * t) + 0.05 * w[1] ** 2 * np.sin(w[1] * t))[:, None]
+    J = 0.02                                                                           # kg m^2: a pure inertia
+    sig = process(t, np.arange(len(t)), q, J * ddq_true, None, fs, FilterSettings(50.0, 7.0))
+    keep = sig.keep
+
+    def err(pred):
+        return float(np.sqrt(np.mean((sig.tau[keep] - pred[keep]) ** 2) / np.mean(sig.tau[keep] ** 2)))
+
+    once = sig.filter_like_torque(J * sig.acceleration_unfiltered())
+    twice = sig.filter_like_torque(J * sig.ddq_motor)
+    assert err(once) < 0.006          # central differences: (omega T)^2 / 6 per derivative at 5 Hz (0.5 % at 250 Hz)
+    assert err(twice) > 0.05          # 6 %: what the diagnosis and the replay did before this release
+    # the unfiltered acceleration is the central difference of the velocity, run by run, NaN outside the runs
+    acc = sig.acceleration_unfiltered()
+    a, b = sig.runs[0]
+    assert np.allclose(acc[a:b], np.gradient(sig.dq_motor[a:b], 1 / fs, axis=0))
+
+
+def test_a_torque_offset_under_half_a_count_of_the_current_read_back_is_not_named():
+    """The data's resolution is a null: a torque offset under half a count of the drive's current read-back
+    (k_t I_rated / 1000, motor side) is the identified model's own bias, never a named effect; terms that do not ask
+    for that floor (``Term.min_counts`` 0) and logs without a rated current are not held to it."""
+    from diagnosis.library import TorqueOffset, FrictionRefit
+    from diagnosis.residual import torque_step
+    from diagnosis.search import MismatchSearch, Scored
+    from diagnosis.library import Fitted
+
+    drives = SimpleNamespace(torque_constant=[0.06, 0.03], rated_current=[5.0, 3.3], torque_side="motor")
+    assert np.allclose(torque_step(drives), [3e-4, 9.9e-5])
+    assert torque_step(SimpleNamespace(torque_constant=[1.0], rated_current=None, torque_side="motor")) is None
+    assert torque_step(SimpleNamespace(torque_constant=[1.0], rated_current=[1.0], torque_side="joint")) is None
+
+    def scored(term, counts):
+        f = Fitted(kind=term.kind, joint=1, hyper=None, coef=np.array([1e-5]), coef_std=np.array([1e-7]),
+                   effect={}, summary="", plausible=True, why_not="")
+        return Scored(fitted=f, fit_gain=0.3, select_gain=0.3, select_gain_all=0.1, holdout_gain=0.3,
+                      rms_before=np.ones(2), rms_after=np.ones(2), band="low", term=term, counts=counts)
+
+    search = MismatchSearch()
+    assert "count of the drive's current read-back" in search._why_rejected(scored(TorqueOffset(), 0.2))
+    assert search._why_rejected(scored(TorqueOffset(), 3.0)) == ""
+    assert search._why_rejected(scored(TorqueOffset(), float("nan"))) == ""          # no rated current: no floor
+    assert search._why_rejected(scored(FrictionRefit(), 0.2)) == ""                  # no floor asked for
