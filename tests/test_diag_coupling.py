@@ -47,8 +47,9 @@ def test_clean_recording_gets_no_coupling():
 
 def test_a_coupling_into_the_hand_joint_is_below_the_noise():
     """Why j6 from j5 is not in the named cases (docs/diagnosis.md): at c = 0.1 its column changes every motor's
-    torque by under 3 tenths of the clean recording's residual (rms, fit rows, torque band), while j5 from j4 at
-    c = 0.08 stands above motor 4's residual."""
+    torque by under half the clean recording's residual (rms, fit rows, torque band; 0.46 on motor 5 since the
+    prediction is filtered once, which made that residual smaller), while j5 from j4 at c = 0.08 stands above
+    motor 4's residual."""
     from diagnosis.library import Coupling
 
     rd = _diagnose([]).rd
@@ -60,6 +61,6 @@ def test_a_coupling_into_the_hand_joint_is_below_the_noise():
 
     noise = rms(res)
     hand = rms(0.1 * Coupling().columns_low(rd, 5, 4)[:, :, 0])
-    assert np.all(hand < 0.3 * noise), hand / noise
+    assert np.all(hand < 0.5 * noise), hand / noise
     wrist = rms(0.08 * Coupling().columns_low(rd, 4, 3)[:, :, 0])
     assert wrist[3] > noise[3], wrist / noise
