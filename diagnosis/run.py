@@ -98,7 +98,8 @@ class DiagnosisResult:
             "holdout_gain": self.search.score(self.rd, "low"),
             "holdout_gain_definition": "report rows only (never seen by the search): 1 - sum of squared residual "
                                        "after / before the found terms, each motor's residual scaled by its RMS on "
-                                       "the fit rows",
+                                       "the fit rows; a finding's own gain on the motors it moves, an elasticity's "
+                                       "or a backlash's on the motor of the joint it names",
             "candidates_step1": runners,
             "notes": self.notes,
         }

@@ -270,8 +270,9 @@ class MismatchSearch:
         fitted = Fitted(kind=term.kind, joint=j, hyper=h, coef=coef, coef_std=std, effect=eff, summary=summary,
                         plausible=bool(ok), why_not=why)
         # a term named on one joint that reaches every motor through the inertia matrix (``Term.own_motor``:
-        # elasticity, backlash) is fitted on all of them but judged on the joint it names: its fit and select gains
-        # are motor j's alone (over six motors, five of which it barely moves, a 48 % cut on its own motor reads 8 %)
+        # elasticity, backlash) is fitted on all of them but judged on the joint it names: its fit, select and report
+        # gains are motor j's alone (over six motors, five of which it barely moves, a 48 % cut on its own motor
+        # reads 8 %)
         judged = [list(motors).index(j)] if term.own_motor and j in motors else slice(None)
         return Scored(fitted=fitted, fit_gain=gain(sums(old_w, sel_fit)[judged], sums(new_w, sel_fit)[judged]),
                       select_gain=gain(st["s0"]["select_rows"][motors][judged], s1["select_rows"][judged]),
