@@ -54,7 +54,8 @@ class Scored:
     term: Term | None = None     # the library term that made it (a kind may be tried in two bands)
     select_gain_own: float = float("nan")   # select rows, motor j's alone (the joint the term is named on)
     counts: float = float("nan")             # RMS of the term's torque on the select rows, in counts of the drive's
-                                             # current read-back, on the motor where it is largest
+                                             # current read-back, on the motor where it is largest (made only for a
+                                             # term with a floor, ``Term.min_counts``)
 
     def row(self, joints) -> dict:
         f = self.fitted
@@ -280,7 +281,8 @@ class MismatchSearch:
                       holdout_gain=gain(st["s0"]["holdout_rows"][motors][judged], s1["holdout_rows"][judged]),
                       rms_before=st["rms"].copy(), rms_after=rms_after,
                       band=band, term=term, select_gain_own=gain(s_own, s_own1),
-                      counts=self._counts(rd, rows["select_rows"], motors, contrib))
+                      counts=(self._counts(rd, rows["select_rows"], motors, contrib) if term.min_counts > 0
+                              else float("nan")))
 
     @staticmethod
     def _counts(rd: ResidualData, select: np.ndarray, motors, contrib: np.ndarray) -> float:
