@@ -975,19 +975,21 @@ class JointElasticity(Term):
 
     def effect(self, rd, j, h, coef, std):
         k = 1.0 / coef[0] if coef[0] > 0 else float("inf")
-        # the first-order (quasi-static) lag holds only if the link's resonance on that spring, sqrt(k / M_jj),
-        # lies above the torque band the residual is compared in; a softer fit is not this physics (a play, a
-        # resonance inside the band, or a model error that the column happens to follow)
+        # the first-order (quasi-static) lag is exact well below the link's resonance on that spring,
+        # sqrt(k / M_jj); nearer it, the lag underestimates the response and the fitted stiffness comes out low.
+        # A resonance inside the torque band is reported, not refused: refusing it rejected true elastic
+        # shoulders (fitted low near their resonance) and let a neighbour's compliance take their residual
+        # (bench, docs/diagnosis.md)
         m_typ = _typical_inertia(rd, j)
         f_band = float(rd.signals.settings.fc_acceleration_hz)
         f_res = float(np.sqrt(k / m_typ) / (2 * np.pi)) if np.isfinite(k) else float("inf")
-        ok = coef[0] > 3 * std[0] and f_res > f_band
-        why = ("" if ok else "compliance not positive/significant" if not coef[0] > 3 * std[0] else
-               f"stiffness {k:.3g} N*m/rad puts the link's resonance at {f_res:.2g} Hz, inside the {f_band:g} Hz "
-               "torque band where a first-order lag does not hold")
+        ok = coef[0] > 3 * std[0]
+        why = "" if ok else "compliance not positive/significant"
+        near = (f" (inside the {f_band:g} Hz torque band: the first-order lag is biased there, the stiffness is "
+                "likely low)") if f_res <= f_band else ""
         return ({"kind": self.kind, "joints": [j], "stiffness": float(k)},
                 f"joint {rd.joints[j]} is elastic: stiffness about {k:.3g} N*m/rad (link lags the gear by tau/k; "
-                f"resonance about {f_res:.2g} Hz with the link's inertia)", ok, why)
+                f"resonance about {f_res:.2g} Hz with the link's inertia{near})", ok, why)
 
 
 class Backlash(_Compliance):

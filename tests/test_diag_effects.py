@@ -47,11 +47,10 @@ CASES = [
     ("load_dependent_friction", 1, {"coefficient": 0.15}, lambda e: abs(e["coefficient"] - 0.15) < 0.03),
     ("asymmetric_friction", 0, {"negative_scale": 1.5}, lambda e: abs(e["negative_scale"] - 1.5) < 0.1),
     ("torque_offset", 2, {"offset": 0.03}, lambda e: abs(e["offset"] - 0.03) < 0.006),
-    pytest.param("joint_elasticity", 1, {"stiffness": 1500.0, "damping": 3.0}, lambda e: 500 < e["stiffness"] < 4000,
-                 marks=pytest.mark.xfail(strict=True, reason="refused: the fitted stiffness (about 950) puts the "
-                                         "link's resonance at 5.9 Hz, inside the 7 Hz torque band where a "
-                                         "first-order lag does not hold (the truth's, 7.4 Hz, is at the band's edge; "
-                                         "docs/diagnosis.md)")),
+    # a shoulder spring whose resonance (7.4 Hz) sits at the torque band's edge: the first-order lag fits it low
+    # (1120 N*m/rad, 25 % low), the resonance then inside the band. Named since that is reported, not refused (it was
+    # refused until this release and the neighbour's compliance took the residual; docs/diagnosis.md)
+    ("joint_elasticity", 1, {"stiffness": 1500.0, "damping": 3.0}, lambda e: 750 < e["stiffness"] < 2250),
     # named since SELECT is the validation trajectory (before, on interleaved blocks of the excitation, the play's
     # fitted scale was far from 1 and it was refused)
     ("backlash", 0, {"width": 0.03, "stiffness": 3000.0, "damping": 3.0}, lambda e: 0.02 <= e["width"] <= 0.04),
