@@ -23,6 +23,8 @@ coefficient of a present effect is positive.
 | asymmetric_friction | [w_i > 0], -[w_i < 0] | f_c+ - f_c, f_c- - f_c -> negative_scale |
 | joint_elasticity | -K^T (d tau/d q_j tau_j + M e_j d2 tau_j/dt2) (the link lags by tau_j/k) | 1/k (rad/(N*m)) -> stiffness k |
 | backlash | K^T e_j (tau_s - tau_r): the link simulated behind the measured gear motion on a spring with a dead zone of width b | width b, contact stiffness k, damping d (grid) |
+| backlash (flank) | K^T d tau/d q_j (-sgn tau_j), + the joint_elasticity column | b/2, 1/k -> width b, stiffness k |
+| backlash (rattle, unfiltered) | -HP[K^T M e_j q_dd_j] (the link does not follow the gear's oscillation above the band; HP = 1 - the torque filter) | share alpha of the link's torque missed (0.2-1.2); width = the gear's oscillation above the band, peak to peak (>= 2 mrad, >= 2 x the band's frequency) |
 | coupling | K^T e_i tau_j; K^T (d tau/d q_j q_i + d tau/d q_d_j q_d_i + M e_j q_dd_i); i on a grid (neighbours, K-coupled) | both paths significant and within 20 % -> coefficient c (rad/rad), from_joint = i |
 
 w = motor speed, theta = motor angle, tau_rigid = M(q) q_dd + h + g of the model (joint side), H_tau a first-order
@@ -35,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from scipy.signal import lfilter
+from scipy.signal import lfilter, welch
 
 from .residual import ResidualData
 
@@ -1136,6 +1138,83 @@ class BacklashOnFlank(Term):
                 f"resolved: 0.3 of critical assumed){held}", ok, why)
 
 
+def _dominant_hz(x: np.ndarray, fs: float, above: float) -> float:
+    """Frequency (Hz) of the largest peak of x's spectrum above ``above`` Hz (Welch, scipy.signal)."""
+    if len(x) < 16:
+        return float("nan")
+    f, p = welch(x, fs=fs, nperseg=min(len(x), 1024))
+    p = np.where(f > above, p, 0.0)
+    return float(f[int(np.argmax(p))])
+
+
+class BacklashRattle(Term):
+    """Lost motion of joint j seen above the torque band: the link, free inside the gap, does not follow the gear's
+    fast motion. The position loop, which meets the rotor alone inside the gap (a far smaller inertia than rotor and
+    link), makes the gear oscillate across it (a limit cycle the play itself excites: on the benchmark's 250 Hz base
+    axes +-0.7 N*m at 23 Hz on the motor, 8x a clean case's), and the model, which moves the link with the gear,
+    predicts the link's inertial torque for that oscillation too. The motors miss a share alpha of it::
+
+        residual = -alpha * HP[ K^T M(q) e_j q_ddot_j ],   HP = 1 - the torque filter (the part above the band)
+
+    (joint j's gear acceleration from the encoders, unfiltered; M by CRBA, :func:`_mass_column`). Compared unfiltered
+    (``band = 'wide'``), fitted on every motor (M couples them: a base axis' oscillation shakes the wrist's predicted
+    torque too), judged on motor j's own (``own_motor``). The width is read from the oscillation: the gear's angle
+    above the band, peak to peak (2 sqrt 2 its RMS over the rows where it swings): a lower bound of the play (the
+    gear swings inside it; on the benchmark the swing is the loop's, 11-12 mrad for plays of 26-53 mrad at 250 Hz).
+
+    The quasi-static :class:`BacklashOnFlank` and the simulated :class:`Backlash` read the play in the torque band,
+    where a vertical base axis shows it little and its rattling link is chaotic (the exact play replayed on the
+    recorded motion does worse than nothing). A joint's spring whose resonance lies below the oscillation would
+    decouple the link too: that is told apart by the term that fits better (the search's ranking)."""
+    kind, band, own_motor = "backlash", "wide", True
+    hyper_name = "gear oscillation above the torque band"
+    MIN_SWING = 0.002     # rad joint side, peak to peak: the gear's angle above the band on the benchmark's arms
+                          # without a limit cycle stays under this (0.1-2 mrad: encoder noise, the trajectory's
+                          # harmonics, a cogging's ripple); a base axis' play in a limit cycle swings 4-12 mrad
+
+    def motors(self, rd, j):
+        return np.arange(rd.n)
+
+    def _gear_acceleration(self, rd, j) -> np.ndarray:
+        return (np.nan_to_num(rd.ddq_motor) @ np.asarray(rd.K, float).T)[:, j]       # joint side, unfiltered
+
+    def columns(self, rd, j, h):
+        joint_side = _mass_column(rd, j) * self._gear_acceleration(rd, j)[:, None]  # (N, n)
+        motor = np.ascontiguousarray(joint_side @ rd.K)                            # K^T, row-wise
+        col = np.zeros((len(rd.t), rd.n, 1))
+        col[:, :, 0] = -(motor - rd.lowpass(motor))
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        alpha = float(coef[0])
+        q_gear = (np.nan_to_num(rd.q_motor) @ np.asarray(rd.K, float).T)[:, j:j + 1]
+        swing = (q_gear - rd.lowpass(q_gear))[:, 0]
+        moving = rd.mask[:, j]
+        width = float(2 * np.sqrt(2) * np.sqrt(np.mean(swing[moving] ** 2))) if moving.any() else 0.0
+        # the contact is not resolved: its stiffness taken as the one that puts the link's resonance on it at the
+        # oscillation's frequency (the limit cycle rings the contact), damping 0.3 of critical (BacklashOnFlank's)
+        f_osc = _dominant_hz(swing[moving], rd.fs, above=float(rd.signals.settings.fc_acceleration_hz))
+        m_typ = _typical_inertia(rd, j)
+        k = float(m_typ * (2 * np.pi * f_osc) ** 2)
+        d = float(2 * 0.3 * np.sqrt(k * m_typ))
+        f_band = float(rd.signals.settings.fc_acceleration_hz)
+        swings = width >= self.MIN_SWING and f_osc >= 2 * f_band
+        ok = alpha > 3 * std[0] and 0.2 < alpha < 1.2 and swings and width < 0.2
+        why = ("" if ok else "share of the link's torque missing not significant" if not alpha > 3 * std[0] else
+               f"share of the link's fast torque missing ({alpha:.2f}) is not a free link's (0.2-1.2)"
+               if not 0.2 < alpha < 1.2 else
+               f"the gear does not oscillate above the band ({width:.2g} rad peak to peak at {f_osc:.3g} Hz; a play "
+               f"is read here only from an oscillation of at least {self.MIN_SWING:g} rad above {2 * f_band:g} Hz)"
+               if not swings else f"the gear's oscillation ({width:.3g} rad) is not a play")
+        return ({"kind": self.kind, "joints": [j], "width": width, "stiffness": k, "damping": d},
+                f"joint {rd.joints[j]} has lost motion: the gear oscillates above the torque band ({width:.3g} rad peak "
+                f"to peak, joint side: the play is at least that wide; its full width is not resolved, the swing is "
+                f"the loop's limit cycle) and the motors miss {alpha:.0%} of the link's "
+                f"torque for that motion (the link, free in the gap, does not follow; the contact is not resolved: "
+                f"its stiffness {k:.3g} N*m/rad puts the link's resonance at the oscillation's {f_osc:.3g} Hz, "
+                "damping 0.3 of critical assumed)", ok, why)
+
+
 # --- gear matrix error --------------------------------------------------------------------------------------------
 class Coupling(Term):
     """A gear matrix error (hil_sim's ``coupling``): the arm's joint-from-motor matrix is K_true = (I + c e_j e_i^T) K,
@@ -1208,6 +1287,7 @@ class Coupling(Term):
 LIBRARY: tuple[Term, ...] = (FrictionRefit(), BreakawayTransient(), TorqueOffset(), Stribeck(), Cogging(), CoggingWide(),
                              PayloadChange(), ThermalDrift(),
                              LoadDependentFriction(), AsymmetricFriction(), JointElasticity(), Backlash(), BacklashOnFlank(),
+                             BacklashRattle(),
                              Coupling())
 KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if not t.reference))   # the named effects (hil_sim's kinds)
 REFERENCE_KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if t.reference))
