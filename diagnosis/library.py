@@ -1164,8 +1164,10 @@ class BacklashRattle(Term):
 
     The quasi-static :class:`BacklashOnFlank` and the simulated :class:`Backlash` read the play in the torque band,
     where a vertical base axis shows it little and its rattling link is chaotic (the exact play replayed on the
-    recorded motion does worse than nothing). A joint's spring whose resonance lies below the oscillation would
-    decouple the link too: that is told apart by the term that fits better (the search's ranking)."""
+    recorded motion does worse than nothing). Not told apart: a joint's spring whose resonance lies below the
+    oscillation decouples the link too, so an elastic joint in a limit cycle reads as a play (bench cases 56, 100,
+    103; neither the share alpha split by the transmitted load nor the swing's harmonics separate them,
+    docs/diagnosis.md)."""
     kind, band, own_motor = "backlash", "wide", True
     hyper_name = "gear oscillation above the torque band"
     MIN_SWING = 0.002     # rad joint side, peak to peak: the gear's angle above the band on the benchmark's arms
