@@ -733,6 +733,12 @@ class AsymmetricFriction(Term):
                 f"Coulomb friction {f_pos:.4g} N*m turning forward, {f_neg:.4g} N*m backward", ok, why)
 
 
+def _gear_side(rd: ResidualData, x_motor: np.ndarray) -> np.ndarray:
+    """A motor-side signal (N, n) as the gears see it, joint side: K x (row-wise), NaN as 0 (for an angle, q - offset:
+    what K makes of the encoders)."""
+    return np.nan_to_num(x_motor) @ np.asarray(rd.K, float).T
+
+
 def _rnea_derivatives(rd: ResidualData) -> None:
     """d tau_rigid / d q and d tau_rigid / d q_dot (joint side, (N, n, n) each): pinocchio's analytic RNEA
     derivatives (computeRNEADerivatives), all joints in one pass over the samples, cached per recording
@@ -741,10 +747,8 @@ def _rnea_derivatives(rd: ResidualData) -> None:
         return
     arm = rd.arm
     model, data = arm.model, arm.model.createData()
-    K = rd.K
     q = np.nan_to_num(rd.q_joint)
-    dq = np.nan_to_num(rd.dq_motor) @ K.T
-    ddq = np.nan_to_num(rd.ddq_motor) @ K.T
+    dq, ddq = _gear_side(rd, rd.dq_motor), _gear_side(rd, rd.ddq_motor)
     iv = arm.idx_v
     Dq = np.zeros((len(q), rd.n, rd.n))
     Dv = np.zeros((len(q), rd.n, rd.n))
@@ -1177,11 +1181,8 @@ class BacklashRattle(Term):
     def motors(self, rd, j):
         return np.arange(rd.n)
 
-    def _gear_acceleration(self, rd, j) -> np.ndarray:
-        return (np.nan_to_num(rd.ddq_motor) @ np.asarray(rd.K, float).T)[:, j]       # joint side, unfiltered
-
     def columns(self, rd, j, h):
-        joint_side = _mass_column(rd, j) * self._gear_acceleration(rd, j)[:, None]  # (N, n)
+        joint_side = _mass_column(rd, j) * _gear_side(rd, rd.ddq_motor)[:, j:j + 1]  # (N, n); q_dd unfiltered
         motor = np.ascontiguousarray(joint_side @ rd.K)                            # K^T, row-wise
         col = np.zeros((len(rd.t), rd.n, 1))
         col[:, :, 0] = -(motor - rd.lowpass(motor))
@@ -1189,17 +1190,17 @@ class BacklashRattle(Term):
 
     def effect(self, rd, j, h, coef, std):
         alpha = float(coef[0])
-        q_gear = (np.nan_to_num(rd.q_motor) @ np.asarray(rd.K, float).T)[:, j:j + 1]
+        q_gear = _gear_side(rd, rd.q_motor)[:, j:j + 1]
         swing = (q_gear - rd.lowpass(q_gear))[:, 0]
         moving = rd.mask[:, j]
         width = float(2 * np.sqrt(2) * np.sqrt(np.mean(swing[moving] ** 2))) if moving.any() else 0.0
         # the contact is not resolved: its stiffness taken as the one that puts the link's resonance on it at the
         # oscillation's frequency (the limit cycle rings the contact), damping 0.3 of critical (BacklashOnFlank's)
-        f_osc = _dominant_hz(swing[moving], rd.fs, above=float(rd.signals.settings.fc_acceleration_hz))
+        f_band = float(rd.signals.settings.fc_acceleration_hz)
+        f_osc = _dominant_hz(swing[moving], rd.fs, above=f_band)
         m_typ = _typical_inertia(rd, j)
         k = float(m_typ * (2 * np.pi * f_osc) ** 2)
         d = float(2 * 0.3 * np.sqrt(k * m_typ))
-        f_band = float(rd.signals.settings.fc_acceleration_hz)
         swings = width >= self.MIN_SWING and f_osc >= 2 * f_band
         ok = alpha > 3 * std[0] and 0.2 < alpha < 1.2 and swings and width < 0.2
         why = ("" if ok else "share of the link's torque missing not significant" if not alpha > 3 * std[0] else
@@ -1256,9 +1257,8 @@ class Coupling(Term):
     def columns(self, rd, j, h):
         i = int(h)
         K = np.asarray(rd.K, float)
-        q_gear = np.nan_to_num(rd.q_motor) @ K.T            # q - offset: what K makes of the encoders
-        dq = np.nan_to_num(rd.dq_motor) @ K.T
-        ddq = np.nan_to_num(rd.ddq_motor) @ K.T
+        q_gear = _gear_side(rd, rd.q_motor)                 # q - offset: what K makes of the encoders
+        dq, ddq = _gear_side(rd, rd.dq_motor), _gear_side(rd, rd.ddq_motor)
         kinematic = (_rnea_dq(rd, j) * q_gear[:, i:i + 1] + _rnea_dv(rd, j) * dq[:, i:i + 1]
                      + _mass_column(rd, j) * ddq[:, i:i + 1])
         col = np.zeros((len(rd.t), rd.n, 2))
