@@ -226,29 +226,40 @@ def test_clean_cases_over_every_set_of_this_release():
 ACC_SETS = {"all": range(0, 72), "fresh": range(72, 96), "hard": range(96, 136), "new": range(136, 160)}
 
 
-@pytest.fixture(scope="module")
-def acc():
+def _scored_sets(stem: str) -> dict:
+    """The four sets' committed rows docs/bench/diagnose-bench-{set}-2026-11-24-STEM.json and their scores, each set
+    holding exactly its seeds."""
     out = {}
     for name, seeds in ACC_SETS.items():
-        rows, s = _scored(f"{name}-2026-11-24-acc")
+        rows, s = _scored(f"{name}-2026-11-24-{stem}")
         assert [r["seed"] for r in rows] == list(seeds)
         out[name] = (rows, s)
     return out
+
+
+@pytest.fixture(scope="module")
+def acc():
+    return _scored_sets("acc")
 
 
 def _false(s) -> int:
     return sum(s["false_names"].values())
 
 
-def test_acc_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(acc):
-    want = {"all": ((66, 83), (61, 67), (11, 11), 14), "fresh": ((24, 30), (24, 25), (3, 3), 3),
-            "hard": ((27, 46), (26, 34), (3, 4), 17), "new": ((14, 27), (13, 19), (3, 3), 9)}
+def _assert_rates(sets: dict, want: dict) -> None:
+    """Each set's (right, effects), (visible right, visible), (clean none, clean) and false names are ``want``'s."""
     for name, (right, vis, clean, false) in want.items():
-        _, s = acc[name]
+        _, s = sets[name]
         assert (s["effects_found"], s["effects"]) == right, name
         assert (s["visible_found"], s["visible"]) == vis, name
         assert (s["clean_none"], s["clean"]) == clean, name
         assert _false(s) == false, name
+
+
+def test_acc_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(acc):
+    want = {"all": ((66, 83), (61, 67), (11, 11), 14), "fresh": ((24, 30), (24, 25), (3, 3), 3),
+            "hard": ((27, 46), (26, 34), (3, 4), 17), "new": ((14, 27), (13, 19), (3, 3), 9)}
+    _assert_rates(acc, want)
     assert "| 0-71 | **66 of 83 (80 %)** | 61 of 67 (91 %) | **11 of 11** | 14 |" in DOC
     assert "| 72-95 | 24 of 30 (80 %) | 24 of 25 (96 %) | 3 of 3 | 3 |" in DOC
     assert "| 96-135 (hard kinds) | **27 of 46 (59 %)** | 26 of 34 (76 %) | 3 of 4 | 17 |" in DOC
@@ -318,23 +329,13 @@ def test_acc_parameter_errors_in_the_docs_are_the_benchmarks(acc):
 # --- earlier in this release: an elastic joint's resonance inside the band reported, not refused (all 160 cases) -------
 @pytest.fixture(scope="module")
 def nores():
-    out = {}
-    for name, seeds in ACC_SETS.items():
-        rows, s = _scored(f"{name}-2026-11-24-nores")
-        assert [r["seed"] for r in rows] == list(seeds)
-        out[name] = (rows, s)
-    return out
+    return _scored_sets("nores")
 
 
 def test_nores_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(nores):
     want = {"all": ((66, 83), (61, 67), (11, 11), 8), "fresh": ((24, 30), (24, 25), (3, 3), 4),
             "hard": ((27, 46), (26, 34), (3, 4), 18), "new": ((16, 27), (15, 19), (3, 3), 9)}
-    for name, (right, vis, clean, false) in want.items():
-        _, s = nores[name]
-        assert (s["effects_found"], s["effects"]) == right, name
-        assert (s["visible_found"], s["visible"]) == vis, name
-        assert (s["clean_none"], s["clean"]) == clean, name
-        assert _false(s) == false, name
+    _assert_rates(nores, want)
     section = DOC[DOC.index("### Earlier in this release: an elastic joint's resonance"):DOC.index("### The last stop:")]
     for line in ("| 0-71 | **66 of 83 (80 %)** | 61 of 67 (91 %) | **11 of 11** | **8** | 66 of 83, 11 of 11, 14 |",
                  "| 72-95 | 24 of 30 (80 %) | 24 of 25 (96 %) | 3 of 3 | 4 | 24 of 30, 3 of 3, 3 |",
@@ -395,12 +396,7 @@ def test_nores_compliance_counts_and_stiffness_errors(nores):
 # --- this release: a base axis' play read from the gear's oscillation (BacklashRattle; all 160 cases) ----------------
 @pytest.fixture(scope="module")
 def rattle():
-    out = {}
-    for name, seeds in ACC_SETS.items():
-        rows, s = _scored(f"{name}-2026-11-24-rattle")
-        assert [r["seed"] for r in rows] == list(seeds)
-        out[name] = (rows, s)
-    return out
+    return _scored_sets("rattle")
 
 
 def _rattle_section() -> str:
@@ -410,12 +406,7 @@ def _rattle_section() -> str:
 def test_rattle_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(rattle):
     want = {"all": ((68, 83), (63, 67), (11, 11), 9), "fresh": ((25, 30), (24, 25), (3, 3), 2),
             "hard": ((32, 46), (30, 34), (3, 4), 19), "new": ((18, 27), (17, 19), (3, 3), 9)}
-    for name, (right, vis, clean, false) in want.items():
-        _, s = rattle[name]
-        assert (s["effects_found"], s["effects"]) == right, name
-        assert (s["visible_found"], s["visible"]) == vis, name
-        assert (s["clean_none"], s["clean"]) == clean, name
-        assert _false(s) == false, name
+    _assert_rates(rattle, want)
     section = _rattle_section()
     for line in ("| 0-71 | **68 of 83 (82 %)** | 63 of 67 (94 %) | **11 of 11** | 9 | 66 of 83, 11 of 11, 8 |",
                  "| 72-95 | 25 of 30 (83 %) | 24 of 25 (96 %) | 3 of 3 | 2 | 24 of 30, 3 of 3, 4 |",

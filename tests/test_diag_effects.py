@@ -131,12 +131,9 @@ def test_found_effect_simulates_back_and_fits_the_recording(tmp_path):
     assert "asymmetric_friction" in paths["report"].read_text()
 
 
-def test_backlash_on_the_shoulder_reads_as_the_link_resting_on_a_flank(tmp_path):
-    """Bench case 0 (scripts/bench_diagnose.py, seed 0: its own trajectory, 1000 Hz, a 0.028 rad play in the
-    gravity-loaded shoulder j2, nothing else): the play shows as the link resting b/2 behind the gear on the flank
-    its load pushes (BacklashOnFlank), which the simulated impacts of Backlash do not fit (scale 0.08). Named on j2
-    alone, with the width about a quarter low (0.021: the elastic column takes part of the offset; docs/diagnosis.md),
-    and proven on the report rows."""
+def _bench_case(seed: int, tmp_path):
+    """Bench case ``seed`` of scripts/bench_diagnose.py (its own trajectory, sample rate and effects), recorded by
+    the simulator as the bench does and diagnosed with the test model: (case, DiagnosisResult)."""
     import copy
     import sys
     from pathlib import Path
@@ -150,13 +147,22 @@ def test_backlash_on_the_shoulder_reads_as_the_link_resting_on_a_flank(tmp_path)
 
     robot = load_robot("js2")
     base = load_trials_config(robot.trials_path or _default_trials())
-    case = bench.draw_case(0, 6, base)
-    assert [(e["kind"], e["joints"]) for e in case["effects"]] == [("backlash", [1])]     # the draw is fixed
+    case = bench.draw_case(seed, 6, base)
     cfg = copy.deepcopy(base)
     cfg.update(copy.deepcopy(case["trials"]))
-    rec = tmp_path / "case_000.mcap"
-    bench.record(robot, rec, case["effects"], cfg, seed=0, cycle_hz=case["cycle_hz"])
-    res = diagnose(clean_model(), rec)
+    rec = tmp_path / f"case_{seed:03d}.mcap"
+    bench.record(robot, rec, case["effects"], cfg, seed=seed, cycle_hz=case["cycle_hz"])
+    return case, diagnose(clean_model(), rec)
+
+
+def test_backlash_on_the_shoulder_reads_as_the_link_resting_on_a_flank(tmp_path):
+    """Bench case 0 (scripts/bench_diagnose.py, seed 0: its own trajectory, 1000 Hz, a 0.028 rad play in the
+    gravity-loaded shoulder j2, nothing else): the play shows as the link resting b/2 behind the gear on the flank
+    its load pushes (BacklashOnFlank), which the simulated impacts of Backlash do not fit (scale 0.08). Named on j2
+    alone, with the width about a quarter low (0.021: the elastic column takes part of the offset; docs/diagnosis.md),
+    and proven on the report rows."""
+    case, res = _bench_case(0, tmp_path)
+    assert [(e["kind"], e["joints"]) for e in case["effects"]] == [("backlash", [1])]     # the draw is fixed
     found = res.findings()
     assert [(f["kind"], f["effect"]["joints"]) for f in found] == [("backlash", [1])], res.verdict()
     f = found[0]
@@ -173,27 +179,9 @@ def test_base_axis_play_in_a_limit_cycle_is_read_from_the_gear_oscillation(tmp_p
     sees nothing on an axis without gravity: named nothing until BacklashRattle, which fits the share of the link's
     torque above the band the motors miss. Named on j1 alone, its width read from the oscillation a lower bound of
     the play (the loop's swing: about half of it here, docs/diagnosis.md), and proven on the report rows."""
-    import copy
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-    import bench_diagnose as bench
-    from diagnosis.run import diagnose
-    from js2io.session import _default_trials
-    from js2io.trials import load_trials_config
-    from js2spec.robot import load_robot
-
-    robot = load_robot("js2")
-    base = load_trials_config(robot.trials_path or _default_trials())
-    case = bench.draw_case(15, 6, base)
+    case, res = _bench_case(15, tmp_path)
     assert [(e["kind"], e["joints"]) for e in case["effects"]] == [("backlash", [0])]     # the draw is fixed
     assert case["cycle_hz"] == 250.0
-    cfg = copy.deepcopy(base)
-    cfg.update(copy.deepcopy(case["trials"]))
-    rec = tmp_path / "case_015.mcap"
-    bench.record(robot, rec, case["effects"], cfg, seed=15, cycle_hz=case["cycle_hz"])
-    res = diagnose(clean_model(), rec)
     found = res.findings()
     assert [(f["kind"], f["effect"]["joints"]) for f in found] == [("backlash", [0])], res.verdict()
     f = found[0]
