@@ -65,6 +65,9 @@ class Term:
     reference = False     # a null the data give (e.g. a refit of the model's own friction): never named an effect
     margin = 0.25         # share of what each ``extends`` term leaves on the select rows this one must cut further
     own_motor = False     # named on joint j but acting on every motor: must also cut motor j's own residual
+    above_band = False    # the term's torque is the part above the torque band by construction (a high-passed
+                          # column): once accepted it adds nothing to the model in the band (the torque filter of
+                          # its column is a filtering artefact, not a torque the motors carry)
     min_counts = 0.0      # a torque (RMS, select rows) of at least this many counts of the current read-back
     search_caches: tuple = ()   # rd.extra keys of what the term keeps for the search alone (``grid_columns(...,
                                 # keep=True)``, ``store_bytes``): MismatchSearch.fit drops them when it ends
@@ -1172,7 +1175,7 @@ class BacklashRattle(Term):
     oscillation decouples the link too, so an elastic joint in a limit cycle reads as a play (bench cases 56, 100,
     103; neither the share alpha split by the transmitted load nor the swing's harmonics separate them,
     docs/diagnosis.md)."""
-    kind, band, own_motor = "backlash", "wide", True
+    kind, band, own_motor, above_band = "backlash", "wide", True, True
     hyper_name = "gear oscillation above the torque band"
     MIN_SWING = 0.002     # rad joint side, peak to peak: the gear's angle above the band on the benchmark's arms
                           # without a limit cycle stays under this (0.1-2 mrad: encoder noise, the trajectory's

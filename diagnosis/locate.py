@@ -75,7 +75,8 @@ def regimes(rd: ResidualData, i: int) -> dict[str, np.ndarray]:
 
 
 def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
-    """Per motor: held-out residual RMS before and after the found terms, the regime where the residual is largest
+    """Per motor: held-out residual RMS before and after the found terms (in the motor's band,
+    ``MismatchSearch.motor_bands``: unfiltered where a finding was proven unfiltered), the regime where the residual is largest
     relative to the motor's overall level, the frequency bands of what the found terms leave on it (wide band, every
     valid row: :func:`band_shares`), and whether the motor is where the mismatch is (``flagged``: the accepted
     terms cut its held-out residual by at least ``min_drop``, or — with nothing accepted — a candidate term reaches
@@ -84,10 +85,12 @@ def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
     rows = rd.fit_rows | rd.holdout_rows
     m = rd.mask & rows[:, None]
     mh = rd.mask & rd.holdout_rows[:, None]
-    before = np.array([_rms(r[mh[:, i], i]) for i in range(rd.n)])
+    # each motor's before/after in the band its findings were proven in (a play's rattle, cogging ripple: unfiltered)
+    motor_band = search.motor_bands(rd) if search is not None else ["low"] * rd.n
+    r_band = {"low": r, "wide": np.nan_to_num(rd.residual_wide)}
+    before = np.array([_rms(r_band[motor_band[i]][mh[:, i], i]) for i in range(rd.n)])
     if search is not None:
-        corr = search.predict(rd, "low")
-        after = np.array([_rms((r - corr)[mh[:, i], i]) for i in range(rd.n)])
+        after = np.array([_rms((r_band[motor_band[i]] - search.predict(rd, motor_band[i]))[mh[:, i], i]) for i in range(rd.n)])
         best_gain = np.zeros(rd.n)
         for sc in (search.rankings_[0] if search.rankings_ else []):
             if not sc.fitted.plausible:
@@ -113,7 +116,7 @@ def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
         accepted = bool(search is not None and search.accepted_)
         flagged = (bool(drop[i] >= min_drop) if accepted
                    else bool(search is not None and best_gain[i] >= search.min_gain))
-        motors.append({"motor": i, "joint": rd.joints[i],
+        motors.append({"motor": i, "joint": rd.joints[i], "band": motor_band[i],
                        "holdout_rms_before": float(before[i]), "holdout_rms_after": float(after[i]),
                        "holdout_drop": float(drop[i]), "regimes": reg, "worst_regime": worst,
                        "frequency_bands": bands, "dominant_band": band,
@@ -125,8 +128,9 @@ def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
         for d in sorted(flagged, key=lambda d: -d["holdout_drop"]):
             wr = d["worst_regime"]
             extra = f"; largest {wr} ({d['regimes'][wr]['ratio']:.1f}x its overall level)" if wr else ""
-            parts.append(f"motor {d['motor'] + 1} ({d['joint']}): held-out residual {d['holdout_rms_before']:.3g} "
-                         f"-> {d['holdout_rms_after']:.3g} N*m{extra}")
+            unf = " (unfiltered)" if d["band"] == "wide" else ""
+            parts.append(f"motor {d['motor'] + 1} ({d['joint']}): held-out residual{unf} "
+                         f"{d['holdout_rms_before']:.3g} -> {d['holdout_rms_after']:.3g} N*m{extra}")
         text = "; ".join(parts)
     else:
         text = "no motor carries a residual that a candidate term explains"

@@ -36,13 +36,14 @@ def _jsonable(x):
 
 def fig_rms(res: DiagnosisResult):
     plt = pyplot()
-    d = res.to_dict()["holdout_rms"]
-    n = len(d["before"])
+    motors = res.location["motors"]          # each motor in the band its findings were proven in
+    n = len(motors)
     fig, ax = plt.subplots(figsize=(7, 3))
     x = np.arange(n)
-    ax.bar(x - 0.2, np.asarray(d["before"], float), 0.4, label="model")
-    ax.bar(x + 0.2, np.asarray(d["after"], float), 0.4, label="model + found terms")
-    ax.set_xticks(x, [f"motor {i + 1}" for i in range(n)])
+    ax.bar(x - 0.2, np.array([m["holdout_rms_before"] for m in motors], float), 0.4, label="model")
+    ax.bar(x + 0.2, np.array([m["holdout_rms_after"] for m in motors], float), 0.4, label="model + found terms")
+    ax.set_xticks(x, [f"motor {i + 1}" + ("\n(unfiltered)" if m["band"] == "wide" else "")
+                      for i, m in enumerate(motors)])
     ax.set_ylabel("report-rows residual RMS (N m)")
     ax.set_title("Residual on the report rows (never seen by the search)")
     ax.legend(fontsize=8)
@@ -224,7 +225,9 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path, replay: bool = False
     cand = [[c["kind"], c["joint"], _g(c["hyper"]), f"{c['select_gain_all']:.1%}", f"{c['select_gain']:.1%}",
              f"{c['fit_gain']:.1%}", "yes" if c["plausible"] and not c["why_not"] else f"no: {c['why_not']}"]
             for c in d["candidates_step1"]]
-    loc_rows = [[f"motor {m['motor'] + 1}", m["joint"], _g(m["holdout_rms_before"]), _g(m["holdout_rms_after"]),
+    loc_rows = [[f"motor {m['motor'] + 1}", m["joint"],
+                 "unfiltered" if m.get("band") == "wide" else "torque band",
+                 _g(m["holdout_rms_before"]), _g(m["holdout_rms_after"]),
                  f"{m['holdout_drop']:.0%}" if m["holdout_drop"] is not None else "–", m["worst_regime"] or "–",
                  f"{m['dominant_band']} ({m['dominant_band_share']:.0%})" if m.get("dominant_band") else "–",
                  "yes" if m["flagged"] else ""] for m in d["location"]["motors"]]
@@ -233,7 +236,7 @@ def write_outputs(res: DiagnosisResult, outdir: str | Path, replay: bool = False
             f"<h2>Answer</h2><p style='font-size:1.15em'>{html.escape(headline(d))}</p>",
             f"<h2>Verdict</h2><p>{html.escape(d['verdict'])}</p>",
             f"<h2>Where</h2><p>{html.escape(d['location']['text'])}</p>",
-            html_table(["motor", "joint", "held-out RMS before (N m)", "after", "drop", "largest in",
+            html_table(["motor", "joint", "scored in", "held-out RMS before (N m)", "after", "drop", "largest in",
                         "left after the findings: most power in", "mismatch"], loc_rows),
             "<h2>What was found</h2>" + (html_table(["kind", "joint", "hyper-parameter", "report gain", "fit gain",
                                                  "coefficients ± std (fit)", "what it means"], rows)

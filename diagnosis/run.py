@@ -95,11 +95,14 @@ class DiagnosisResult:
                             "band": "torque band (acceleration filter)"},
             "holdout_rms_wide": {"before": base["wide"]["holdout"].tolist(),
                                  "after": fin["wide"]["holdout"].tolist(), "band": "unfiltered"},
-            "holdout_gain": self.search.score(self.rd, "low"),
+            "holdout_gain": self.search.score(self.rd, "own"),
+            "holdout_gain_bands": self.search.motor_bands(self.rd),
             "holdout_gain_definition": "report rows only (never seen by the search): 1 - sum of squared residual "
                                        "after / before the found terms, each motor's residual scaled by its RMS on "
-                                       "the fit rows; a finding's own gain on the motors it moves, an elasticity's "
-                                       "or a backlash's on the motor of the joint it names",
+                                       "the fit rows; each motor in the band its findings were proven in "
+                                       "(holdout_gain_bands: 'low' the torque band, 'wide' unfiltered, for cogging "
+                                       "ripple or a play's rattle); a finding's own gain on the motors it moves, an "
+                                       "elasticity's or a backlash's on the motor of the joint it names",
             "candidates_step1": runners,
             "notes": self.notes,
         }

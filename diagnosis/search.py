@@ -376,7 +376,7 @@ class MismatchSearch:
             cols = _on_motors(term.columns(rd, best.fitted.joint, best.fitted.hyper),
                               term.motors(rd, best.fitted.joint))
             raw = cols @ best.fitted.coef
-            low = rd.lowpass(raw)
+            low = np.zeros_like(raw) if term.above_band else rd.lowpass(raw)
             res["low"] = res["low"] - low
             res["wide"] = res["wide"] - raw
             for band in res:
@@ -436,11 +436,30 @@ class MismatchSearch:
         """Torque (N, n) the accepted terms add to the model's prediction, in ``band`` ('low' or 'wide')."""
         return self.corrections_[band]
 
-    def score(self, rd: ResidualData, band: str = "low", rows: str = "holdout_rows") -> float:
-        """Gain (weighted SSE reduction) of all accepted terms together on ``rows`` (default: the report rows)."""
-        r0 = np.nan_to_num(rd.residual if band == "low" else rd.residual_wide)
+    def motor_bands(self, rd: ResidualData) -> list[str]:
+        """The band each motor is scored in: 'wide' (unfiltered) on the motors an accepted term proven unfiltered
+        (``Term.band`` 'wide': cogging ripple, a play's rattle) moves, the torque band ('low') elsewhere. A finding
+        is then scored in the band it was found in, not filtered away by the 7 Hz torque filter."""
+        out = ["low"] * rd.n
+        for s in self.accepted_:
+            if s.band == "wide":
+                term = s.term or self._term(s.fitted.kind)
+                for i in term.motors(rd, s.fitted.joint):
+                    out[int(i)] = "wide"
+        return out
+
+    def score(self, rd: ResidualData, band: str = "own", rows: str = "holdout_rows") -> float:
+        """Gain (weighted SSE reduction) of all accepted terms together on ``rows`` (default: the report rows), each
+        motor in ``band`` ('low', 'wide', or 'own': each motor in its :meth:`motor_bands` band; weighted by the
+        band's fit-rows RMS, so the two bands add on one scale)."""
+        bands = self.motor_bands(rd) if band == "own" else [band] * rd.n
         m = rd.mask & getattr(rd, rows)[:, None]
-        w = self.weights_[band]
-        s0 = float(np.sum((r0 * w)[m] ** 2))
-        s1 = float(np.sum(((r0 - self.corrections_[band]) * w)[m] ** 2))
+        s0 = s1 = 0.0
+        for b in set(bands):
+            cols = np.array([x == b for x in bands])
+            r0 = np.nan_to_num(rd.residual if b == "low" else rd.residual_wide)
+            w = self.weights_[b]
+            mb = m & cols[None, :]
+            s0 += float(np.sum((r0 * w)[mb] ** 2))
+            s1 += float(np.sum(((r0 - self.corrections_[b]) * w)[mb] ** 2))
         return 1.0 - s1 / s0 if s0 > 0 else 0.0

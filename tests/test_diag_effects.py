@@ -189,3 +189,10 @@ def test_base_axis_play_in_a_limit_cycle_is_read_from_the_gear_oscillation(tmp_p
     width = case["effects"][0]["width"]
     assert 0.3 * width <= f["effect"]["width"] <= width
     assert f["holdout_gain"] > 0.5                                          # on rows the search never saw
+    # the headline and the locator score the base motor in the band the play was proven in (unfiltered): not the
+    # 7 Hz torque band, where the rattle is filtered away and the finding read as making things worse
+    d = res.to_dict()
+    assert d["holdout_gain_bands"] == ["wide"] * 6                           # the rattle's torque reaches every motor
+    assert not np.any(res.search.predict(res.rd, "low"))                     # and adds nothing in the torque band
+    assert d["holdout_gain"] > 0.5
+    assert 0 in res.location["flagged"] and "motor 1 (j1): held-out residual (unfiltered)" in res.location["text"]
