@@ -350,6 +350,10 @@ class MismatchSearch:
             self.tried_ += len(scored)
             self._nested_check(scored)
             self._shift_check(rd, scored, res, weights)
+            for s in scored:                       # what an accepted term already explains is not named again
+                why = s.term.already_found(rd, s, self.accepted_) if s.term is not None and s.fitted.plausible else ""
+                if why:
+                    s.fitted.plausible, s.fitted.why_not = False, why
             scored.sort(key=lambda s: (s.fitted.plausible, s.select_gain_all), reverse=True)
             self.rankings_.append(scored)
             best = None

@@ -212,3 +212,41 @@ def test_a_torque_offset_under_half_a_count_of_the_current_read_back_is_not_name
     assert search._why_rejected(scored(TorqueOffset(), 3.0)) == ""
     assert search._why_rejected(scored(TorqueOffset(), float("nan"))) == ""          # no rated current: no floor
     assert search._why_rejected(scored(FrictionRefit(), 0.2)) == ""                  # no floor asked for
+    # a Stribeck hump is held to the same floor (bench case 22, clean, re-recorded: 0.2 count on j2; the true humps
+    # of the benchmark: 2.0-6.0 counts)
+    from diagnosis.library import Stribeck
+    assert "count of the drive's current read-back" in search._why_rejected(scored(Stribeck(), 0.2))
+    assert search._why_rejected(scored(Stribeck(), 2.0)) == ""
+
+
+def test_one_limit_cycle_is_one_play():
+    """BacklashRattle.already_found: a second joint whose gear oscillates within SAME_CYCLE of an accepted rattle's
+    frequency swings in the same limit cycle (bench cases 103, 106: 25.6 / 25.6 Hz and 22.9 / 22.5 Hz, the second
+    named a false play); a second joint swinging at its own frequency is not held back."""
+    from scipy.signal import butter, sosfiltfilt
+
+    from diagnosis.library import BacklashRattle, Fitted
+    from diagnosis.search import Scored
+
+    fs, n = 250.0, 3
+    t = np.arange(0, 20, 1 / fs)
+    sos = butter(4, 7.0, fs=fs, output="sos")
+    q = np.stack([0.3 * np.sin(0.5 * t) + 0.004 * np.sin(2 * np.pi * 25.6 * t),      # the play's joint
+                  0.2 * np.sin(0.4 * t) + 0.002 * np.sin(2 * np.pi * 25.6 * t),      # shaken in the same cycle
+                  0.1 * np.sin(0.3 * t) + 0.003 * np.sin(2 * np.pi * 37.0 * t)], axis=1)   # its own oscillation
+    rd = SimpleNamespace(K=np.eye(n), q_motor=q, fs=fs, mask=np.ones((len(t), n), dtype=bool),
+                         lowpass=lambda x: sosfiltfilt(sos, x, axis=0), joints=["j1", "j2", "j3"],
+                         signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=7.0)))
+    width, f = BacklashRattle.oscillation(rd, 0)
+    assert abs(f - 25.6) < 0.5 and 0.007 < width < 0.009           # 2 x 0.004 peak to peak
+
+    def scored(j):
+        fit = Fitted(kind="backlash", joint=j, hyper=None, coef=np.array([0.9]), coef_std=np.array([0.01]),
+                     effect={}, summary="", plausible=True, why_not="")
+        return Scored(fitted=fit, fit_gain=0.5, select_gain=0.5, select_gain_all=0.2, holdout_gain=0.5,
+                      rms_before=np.ones(n), rms_after=np.ones(n), band="wide", term=BacklashRattle())
+
+    term, first = BacklashRattle(), scored(0)
+    assert "same limit cycle" in term.already_found(rd, scored(1), [first])
+    assert term.already_found(rd, scored(2), [first]) == ""
+    assert term.already_found(rd, scored(1), []) == ""
