@@ -250,3 +250,19 @@ def test_one_limit_cycle_is_one_play():
     assert "same limit cycle" in term.already_found(rd, scored(1), [first])
     assert term.already_found(rd, scored(2), [first]) == ""
     assert term.already_found(rd, scored(1), []) == ""
+
+
+def test_no_thermal_drift_is_looked_for_in_a_recording_too_short_to_tell_a_lag_from_a_trend():
+    """ThermalDrift.too_short: under 2 x the fastest lag tried (10 s) every lag is a ramp, so no time constant is
+    tried (the clean real TX40 recording, 9 s, had a 10 s drift named); the benchmark's recordings (23-43 s) keep
+    their whole grid."""
+    from diagnosis.library import ThermalDrift
+
+    def rd(span):
+        return SimpleNamespace(t=np.linspace(0.0, span, 100))
+    term = ThermalDrift()
+    assert ThermalDrift.too_short(rd(9.0)) and term.grid(rd(9.0), 0) == []
+    assert not ThermalDrift.too_short(rd(23.5))
+    grid = term.grid(rd(23.5), 0)
+    assert grid and min(tc for tc, _ in grid) == 10.0 and max(tc for tc, _ in grid) == pytest.approx(94.0)
+    assert {src for _, src in grid} == set(ThermalDrift.SOURCES)
