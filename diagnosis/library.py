@@ -583,7 +583,7 @@ class ThermalDrift(Term):
         """A recording shorter than ``MIN_SPAN`` x ``TAU_MIN`` (20 s) holds no thermal lag that can be told from any
         slow trend (a torque zero that moves, a model error that grows along the trajectory): every lag tried is a
         ramp there. The clean real TX40 recording (9 s) got a 10 s drift named on joint 1 (report gain 72 %); the
-        benchmark's recordings span 23-43 s."""
+        benchmark's recordings span 31-51 s."""
         return float(rd.t[-1] - rd.t[0]) < cls.MIN_SPAN * cls.TAU_MIN
 
     def grid(self, rd, j):

@@ -76,9 +76,9 @@ def regimes(rd: ResidualData, i: int) -> dict[str, np.ndarray]:
 
 def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
     """Per motor: held-out residual RMS before and after the found terms (in the motor's band,
-    ``MismatchSearch.motor_bands``: unfiltered where a finding was proven unfiltered), the regime where the residual is largest
-    relative to the motor's overall level, the frequency bands of what the found terms leave on it (wide band, every
-    valid row: :func:`band_shares`), and whether the motor is where the mismatch is (``flagged``: the accepted
+    ``MismatchSearch.motor_bands``: unfiltered where a finding was proven unfiltered), the regime where the residual
+    is largest relative to the motor's overall level, the frequency bands of what the found terms leave on it (wide
+    band, every valid row: :func:`band_shares`), and whether the motor is where the mismatch is (``flagged``: the accepted
     terms cut its held-out residual by at least ``min_drop``, or — with nothing accepted — a candidate term reaches
     the search's ``min_gain`` on the select rows without passing every other test). RMS figures: report rows."""
     r = np.nan_to_num(rd.residual)
@@ -90,7 +90,8 @@ def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
     r_band = {"low": r, "wide": np.nan_to_num(rd.residual_wide)}
     before = np.array([_rms(r_band[motor_band[i]][mh[:, i], i]) for i in range(rd.n)])
     if search is not None:
-        after = np.array([_rms((r_band[motor_band[i]] - search.predict(rd, motor_band[i]))[mh[:, i], i]) for i in range(rd.n)])
+        after = np.array([_rms((r_band[motor_band[i]] - search.predict(rd, motor_band[i]))[mh[:, i], i])
+                          for i in range(rd.n)])
         best_gain = np.zeros(rd.n)
         for sc in (search.rankings_[0] if search.rankings_ else []):
             if not sc.fitted.plausible:

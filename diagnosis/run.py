@@ -8,6 +8,7 @@ from pathlib import Path
 from js2spec.log import join_logs, read_log
 from js2spec.model import IdentifiedModel, load_model
 
+from .library import ThermalDrift
 from .locate import band_shares, dominant_band, locate
 from .residual import ResidualData, residual_data
 from .search import MismatchSearch, Scored, _on_motors
@@ -181,7 +182,6 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
                        min_speed=opt.min_speed)
     if rd.signals.note and rd.signals.note != "no lost or invalid cycles":
         notes.append(rd.signals.note)
-    from .library import ThermalDrift
     if ThermalDrift.too_short(rd) and (opt.kinds is None or "thermal_drift" in opt.kinds):
         notes.append(f"thermal drift not looked for: the recording spans {float(rd.t[-1] - rd.t[0]):.3g} s, under "
                      f"{ThermalDrift.MIN_SPAN:g} x the fastest thermal lag tried ({ThermalDrift.TAU_MIN:g} s): there "

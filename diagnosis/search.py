@@ -459,7 +459,7 @@ class MismatchSearch:
         bands = self.motor_bands(rd) if band == "own" else [band] * rd.n
         m = rd.mask & getattr(rd, rows)[:, None]
         s0 = s1 = 0.0
-        for b in set(bands):
+        for b in sorted(set(bands)):               # a fixed order: the same sum to the last bit on every run
             cols = np.array([x == b for x in bands])
             r0 = np.nan_to_num(rd.residual if b == "low" else rd.residual_wide)
             w = self.weights_[b]

@@ -254,7 +254,7 @@ def test_one_limit_cycle_is_one_play():
 
 def test_no_thermal_drift_is_looked_for_in_a_recording_too_short_to_tell_a_lag_from_a_trend():
     """ThermalDrift.too_short: under 2 x the fastest lag tried (10 s) every lag is a ramp, so no time constant is
-    tried (the clean real TX40 recording, 9 s, had a 10 s drift named); the benchmark's recordings (23-43 s) keep
+    tried (the clean real TX40 recording, 9 s, had a 10 s drift named); the benchmark's recordings (31-51 s) keep
     their whole grid."""
     from diagnosis.library import ThermalDrift
 
