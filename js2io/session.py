@@ -548,6 +548,11 @@ class Session:
             "trials": ",".join(f"{n}:{s}" for n, s, _ in res.trials)})
         self.w.close()
         res.log_error = self.w.error
+        if res.log_error and not res.aborted:
+            # the trials ran to their end, but a writer thread behind them met the error after the last cycle (a
+            # group faster than real time fills its ring): the recording is incomplete all the same, so the run
+            # failed (js2-acquire exits 1), as when the error stops it mid-trial
+            res.aborted, res.reason = True, res.log_error
 
 
 def open_log(path, robot, group: DriveGroup, trials_cfg: dict | None = None, extra: dict | None = None) -> LogWriter:
