@@ -88,19 +88,17 @@ def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
     # each motor's before/after in the band its findings were proven in (a play's rattle, cogging ripple: unfiltered)
     motor_band = search.motor_bands(rd) if search is not None else ["low"] * rd.n
     r_band = {"low": r, "wide": np.nan_to_num(rd.residual_wide)}
+    left = {b: x - search.predict(rd, b) for b, x in r_band.items()} if search is not None else r_band
     before = np.array([_rms(r_band[motor_band[i]][mh[:, i], i]) for i in range(rd.n)])
+    after = np.array([_rms(left[motor_band[i]][mh[:, i], i]) for i in range(rd.n)])
+    best_gain = np.zeros(rd.n)
     if search is not None:
-        after = np.array([_rms((r_band[motor_band[i]] - search.predict(rd, motor_band[i]))[mh[:, i], i])
-                          for i in range(rd.n)])
-        best_gain = np.zeros(rd.n)
         for sc in (search.rankings_[0] if search.rankings_ else []):
             if not sc.fitted.plausible:
                 continue
             for i in sc.fitted.effect.get("joints", []):
                 best_gain[i] = max(best_gain[i], sc.select_gain)
-    else:
-        after, best_gain = before.copy(), np.zeros(rd.n)
-    left_wide = np.nan_to_num(rd.residual_wide) - (search.predict(rd, "wide") if search is not None else 0.0)
+    left_wide = left["wide"]
     drop = 1 - after / np.where(before > 0, before, np.nan)
     motors = []
     for i in range(rd.n):

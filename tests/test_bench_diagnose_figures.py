@@ -418,12 +418,9 @@ def test_rattle_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(rattle):
 
 
 def test_rattle_totals_and_the_base_axis_plays(rattle, nores):
-    found = sum(rattle[k][1]["effects_found"] for k in ACC_SETS)
-    effects = sum(rattle[k][1]["effects"] for k in ACC_SETS)
-    clean = (sum(rattle[k][1]["clean_none"] for k in ACC_SETS), sum(rattle[k][1]["clean"] for k in ACC_SETS))
-    false = sum(_false(rattle[k][1]) for k in ACC_SETS)
+    found, effects, *clean, false = _totals(rattle)
     assert (found, effects) == (143, 186) and round(100 * found / effects) == 77
-    assert clean == (20, 21) and false == 39
+    assert tuple(clean) == (20, 21) and false == 39
     rows = [r for k in ACC_SETS for r in rattle[k][0]]
     before = {r["seed"]: r for k in ACC_SETS for r in nores[k][0]}
 
