@@ -26,7 +26,8 @@ what it does:
   3. fits every candidate term (named effects: %s; each on every joint/link) on FIT, ranks them on SELECT and
      walks down the ranking to the first that cuts the SELECT residual of its motors by --min-gain and beats the
      null of a plain refit of the model's own friction; accepts it, ranks again, until none passes (at most
-     --max-terms); structure only the refit explains is reported 'unexplained', never named;
+     --max-terms); structure only the refit explains is reported 'unexplained', never named (so is a constant
+     torque offset on a recording the model was identified from: the model's own choice, js2-identify --offsets);
   4. reports the gains on REPORT alone, which the search never saw;
   5. with --replay: replays the recorded motion through the simulator (hil_sim, inverse dynamics) with the model,
      then with the model plus the found effects, and compares the simulated torques with the recording on REPORT.

@@ -117,7 +117,7 @@ def headline(d: dict) -> str:
         return ("Mismatch, but no named physics: the residual on "
                 + ", ".join(f"{u['joint']} ({u['regime'] or 'every regime'}, mostly {u['frequency_band']})"
                             for u in d["unexplained"])
-                + " has structure that only a refit of the model's own friction explains (unexplained).")
+                + " has structure that only a refit of the model's own terms explains (unexplained).")
     return "No mismatch that any candidate term explains on held-out data: the model is complete as far as this " \
            "recording can tell."
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from js2spec.log import join_logs, read_log
 from js2spec.model import IdentifiedModel, load_model
 
-from .library import ThermalDrift
+from .library import LIBRARY, ThermalDrift, model_data_library
 from .locate import band_shares, dominant_band, locate
 from .residual import ResidualData, residual_data
 from .search import MismatchSearch, Scored, _on_motors
@@ -123,9 +123,8 @@ class DiagnosisResult:
                         "regime": mot.get("worst_regime"), "frequency_band": band,
                         "frequency_band_share": None if band is None else round(float(share), 4),
                         "fraction_of_residual": round(float(s.select_gain), 4),
-                        "holdout_gain": float(s.holdout_gain),
-                        "what": "the model's friction on this motor differs from the recording's "
-                                "(a refit explains it; no named effect does better): " + s.fitted.summary})
+                        "holdout_gain": float(s.holdout_gain), "reference": s.fitted.kind,
+                        "what": f"{term.unexplained_what}: {s.fitted.summary}"})
         return out
 
     def verdict(self) -> str:
@@ -135,7 +134,7 @@ class DiagnosisResult:
         if self.search.references_:
             return ("unexplained: the residual has structure on " + ", ".join(
                 self.rd.joints[s.fitted.joint] for s in self.search.references_)
-                + " that no named effect explains better than a refit of the model's own friction: nothing named")
+                + " that no named effect explains better than a refit of the model's own terms: nothing named")
         return "none: no candidate term improves the fit on held-out data enough: nothing named"
 
     def diagnosed_model(self) -> dict:
@@ -170,8 +169,17 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
     opt = options or DiagnoseOptions()
     mdl = model if isinstance(model, IdentifiedModel) else load_model(model)
     paths = [Path(p) for p in log_path] if isinstance(log_path, (list, tuple)) else [Path(log_path)]
-    log = join_logs([read_log(p) for p in paths])
+    logs = [read_log(p) for p in paths]
+    log = join_logs(logs)
     notes = []
+    library = LIBRARY
+    inputs = {str(i.get("sha256")) for i in (mdl.raw.get("inputs") or []) if i.get("sha256")}
+    own = [p.name for p, lg in zip(paths, logs) if lg.sha256 and lg.sha256 in inputs]
+    if own:
+        library = model_data_library(LIBRARY)
+        notes.append(f"{', '.join(own)}: the model was identified from this recording (its sha256 is one of the "
+                     "model's inputs), so a constant torque per motor is a choice of the model's own structure "
+                     "(`js2-identify --offsets`), reported unexplained, not named")
     if len(paths) > 1:
         notes.append(f"one session over {len(paths)} files, joined in the order given (each filtered on its own): "
                      + ", ".join(p.name for p in paths))
@@ -192,7 +200,7 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
 
         def progress(it, desc=""):
             return tqdm(it, desc=desc, leave=False, disable=None)   # None: terminals only
-    search = MismatchSearch(kinds=opt.kinds, min_gain=opt.min_gain, max_terms=opt.max_terms,
+    search = MismatchSearch(library=library, kinds=opt.kinds, min_gain=opt.min_gain, max_terms=opt.max_terms,
                             progress=progress).fit(rd)
     loc = locate(rd, search)
     if (rd.signals.settings.fc_velocity_hz, rd.signals.settings.fc_acceleration_hz) != (

@@ -15,7 +15,10 @@ K = I, no trial labels), with the plain commands.
    the model nor seen before) is the protocol's case (within 10 %); kuka_1 is the model's own recording, kuka_3
    shows the spread real model error gives;
 5. any sample rate: the kuka_2 payload recording decimated to 100 Hz (the paper's 50 Hz velocity filter would sit at
-   Nyquist) is diagnosed too.
+   Nyquist) is diagnosed too;
+6. a second arm, clean: the Staubli TX40 recording (../shared/data/real/staubli_tx40: 5 kHz motor currents, coupled
+   wrist, 9 s, FIGAROH's excitation and validation parts) through js2-import, the plain js2-identify and
+   js2-diagnose on the same recording -> none or unexplained.
 
     .venv/bin/python scripts/prove_diagnosis_real.py [--data ../shared/data/real] [--out runs/prove_diagnosis_real]
 """
@@ -81,6 +84,17 @@ def identify(log: Path, out: Path) -> Path:
     return out
 
 
+def tx40_clean(data: Path, out: Path) -> dict:
+    """Step 6: the clean TX40 recording imported, identified and diagnosed with the plain commands; diagnosis.json."""
+    from identification.examples.real_arms import import_tx40
+
+    out.mkdir(parents=True, exist_ok=True)
+    log = out / "tx40.mcap"
+    if not log.is_file():
+        import_tx40(data, log)
+    return diagnose_cli(identify(log, out / "model"), log, out / "diag")
+
+
 def payload_log(data: Path, out: Path, which: int = 2, mass: float = PAYLOAD_MASS, com=PAYLOAD_COM,
                 decimate: int = 1, trials=None, part: tuple[float, float] | None = None) -> Path:
     """kuka_<which> with the payload's torque added (see module docstring), optionally decimated (every
@@ -141,6 +155,11 @@ def main(argv=None) -> int:
                      "mass": pay[0]["effect"]["mass"] if pay else None,
                      "com": pay[0]["effect"]["com"] if pay else None,
                      "report_gain": pay[0]["holdout_gain"] if pay else None,
+                     "unexplained": [u["joint"] for u in d["unexplained"]]})
+    if (a.data / "staubli_tx40").is_dir():
+        d = tx40_clean(a.data, a.out / "tx40")
+        rows.append({"recording": "tx40.mcap", "added": "nothing", "verdict": d["verdict"].split(":")[0],
+                     "named": [f"{f['kind']} on {f['joint']}" for f in d["findings"]],
                      "unexplained": [u["joint"] for u in d["unexplained"]]})
     for r in rows:
         extra = (f"  mass {r['mass']:.3f} kg (error {abs(r['mass'] - PAYLOAD_MASS) / PAYLOAD_MASS:.1%}), com "

@@ -113,6 +113,38 @@ def test_clean_recording_names_nothing():
     assert all(s.term.reference for s in res.search.references_)
 
 
+def test_an_offset_on_the_recording_the_model_was_identified_from_is_unexplained_not_named():
+    """The same recording with a concealed 0.03 N*m offset on motor 3, once as a recording of another day (named, as
+    in the case above) and once as if it were one of the model's own inputs (its sha256 in ``inputs``): then the
+    constant is the identification's own choice of structure (js2-identify --offsets), reported ``unexplained`` on
+    that joint with a note, never named (the clean real TX40 recording's one false name)."""
+    import copy
+    import dataclasses
+
+    from diagnosis.run import diagnose
+    from js2spec.log import file_sha256
+    from js2spec.model import load_model
+
+    rec = recording(json.dumps([{"kind": "torque_offset", "joints": [2], "offset": 0.03}]))
+    other_day = _diagnose([{"kind": "torque_offset", "joints": [2], "offset": 0.03}])
+    assert [(f["kind"], f["joint_index"]) for f in other_day.findings()] == [("torque_offset", 2)]
+    assert not any("identified from this recording" in n for n in other_day.notes)
+
+    mdl = load_model(clean_model())
+    raw = copy.deepcopy(mdl.raw)
+    raw["inputs"] = list(raw.get("inputs") or []) + [{"path": str(rec), "sha256": file_sha256(rec)}]
+    mdl = dataclasses.replace(mdl, raw=raw)
+    own = diagnose(mdl, rec)
+    assert own.findings() == []
+    assert own.verdict().startswith("unexplained")
+    unexplained = own.unexplained()
+    # first the offset; after it, the refits of the clean model's own friction that test_clean_recording_names_nothing
+    # allows
+    assert (unexplained[0]["joint_index"], unexplained[0]["reference"]) == (2, "torque_offset")
+    assert "js2-identify --offsets" in unexplained[0]["what"]
+    assert all(u["reference"] in ("friction_refit", "breakaway_transient") for u in unexplained[1:])
+    assert any("identified from this recording" in n for n in own.notes)
+
 def test_found_effect_simulates_back_and_fits_the_recording(tmp_path):
     """'models it': the diagnosed model's effects.yaml is valid hil_sim input, with the recovered parameter."""
     import yaml
