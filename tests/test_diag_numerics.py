@@ -266,3 +266,50 @@ def test_no_thermal_drift_is_looked_for_in_a_recording_too_short_to_tell_a_lag_f
     grid = term.grid(rd(23.5), 0)
     assert grid and min(tc for tc, _ in grid) == 10.0 and max(tc for tc, _ in grid) == pytest.approx(94.0)
     assert {src for _, src in grid} == set(ThermalDrift.SOURCES)
+
+
+def test_one_point_mass_is_moved_to_the_outer_link_only_when_it_explains_the_data_alike():
+    """PayloadChange.resolve: a payload read on link 5 and again on link 6 within SAME_POINT_M and SAME_MASS is one
+    point, named on the outer link -- unless the outer reading leaves more than SAME_FIT times the chosen one's
+    select residual (bench case 53: 0.75 kg on link 5, select gains 89 % on link 5 and 64 % on link 6, the move
+    then mended with a false torque offset; the real kuka_3 payload's move leaves 1.36x and is kept)."""
+    from diagnosis.library import Fitted, PayloadChange
+    from diagnosis.search import Scored
+
+    class Points(PayloadChange):
+        def world_points(self, rd, j, com, samples=200):        # the two readings 4.8 cm apart along the motion
+            return np.array([[0.0, 0.0, 0.048 * (j == 5)]])
+
+    def scored(j, select_gain, mass=0.72):
+        fit = Fitted(kind="payload_change", joint=j, hyper=None, coef=np.zeros(4), coef_std=np.ones(4),
+                     effect={"mass": mass, "com": [0.0, 0.0, 0.0]}, summary="", plausible=True, why_not="")
+        return Scored(fitted=fit, fit_gain=select_gain, select_gain=select_gain, select_gain_all=select_gain,
+                      holdout_gain=select_gain, rms_before=np.ones(6), rms_after=np.ones(6), band="low")
+
+    rd = SimpleNamespace(arm=SimpleNamespace(links=[f"link{k + 1}" for k in range(6)]))
+    term = Points()
+    inner = scored(4, 0.886)
+    assert term.resolve(rd, inner, [inner, scored(5, 0.637)]) is inner           # 3.2x the residual: kept
+    outer = scored(5, 0.80)                                                       # 1.75x: the same point, moved
+    assert term.resolve(rd, inner, [inner, outer]) is outer and "same point mass" in outer.note
+    assert term.resolve(rd, inner, [inner, scored(5, 0.80, mass=0.5)]) is inner  # another mass
+
+
+def test_a_play_on_a_stiff_contact_is_named_with_its_stiffness_bounded_from_below():
+    """BacklashOnFlank.effect: the play b/2 must be significant; the contact's compliance may be zero within its std
+    (a stiff contact: bench case 65, b 0.054 rad for 0.052, compliance -4e-5 +- 4e-5, was refused and the plain
+    spring named instead): then the stiffness is reported as at least 1 / (compliance + 3 std). A compliance
+    significantly below zero is no contact."""
+    from diagnosis.library import BacklashOnFlank
+
+    N, n = 200, 3
+    rd = SimpleNamespace(tau_rigid_joint=np.tile([1.0, -1.0], N // 2)[:, None] * np.ones((1, n)),
+                         extra={"M": np.tile(0.5 * np.eye(n), (N, 1, 1))}, joints=["j1", "j2", "j3"])
+    term = BacklashOnFlank()
+    eff, summary, ok, why = term.effect(rd, 2, None, np.array([0.027, -4e-5]), np.array([1.6e-4, 4e-5]))
+    assert ok and why == "" and eff["width"] == pytest.approx(0.054)
+    assert eff["stiffness"] == pytest.approx(1 / 8e-5) and "at least" in summary
+    eff, summary, ok, _ = term.effect(rd, 2, None, np.array([0.027, 3.3e-4]), np.array([1.6e-4, 4e-5]))
+    assert ok and eff["stiffness"] == pytest.approx(1 / 3.3e-4) and "at least" not in summary       # resolved
+    assert not term.effect(rd, 2, None, np.array([0.0115, -8e-4]), np.array([1.4e-4, 1.1e-5]))[2]  # negative
+    assert not term.effect(rd, 2, None, np.array([2e-4, 1e-4]), np.array([1.6e-4, 4e-5]))[2]       # no play
