@@ -24,7 +24,7 @@ coefficient of a present effect is positive.
 | joint_elasticity | -K^T (d tau/d q_j tau_j + M e_j d2 tau_j/dt2) (the link lags by tau_j/k) | 1/k (rad/(N*m)) -> stiffness k |
 | backlash | K^T e_j (tau_s - tau_r): the link simulated behind the measured gear motion on a spring with a dead zone of width b | width b, contact stiffness k, damping d (grid) |
 | backlash (flank) | K^T d tau/d q_j (-sgn tau_j), + the joint_elasticity column | b/2, 1/k -> width b, stiffness k |
-| backlash (rattle, unfiltered) | -HP[K^T M e_j q_dd_j] (the link does not follow the gear's oscillation above the band; HP = 1 - the torque filter) | share alpha of the link's torque missed (0.2-1.2); width = the gear's oscillation above the band, peak to peak (>= 2 mrad, >= 2 x the band's frequency) |
+| backlash (rattle, unfiltered) | -HP[K^T M e_j q_dd_j] (the link does not follow the gear's oscillation above the band; HP = 1 - the torque filter) | share alpha of the link's torque missed (0.2-2.0: a link the flanks knock back misses more than all of it); width = the gear's oscillation above the band, peak to peak (>= 2 mrad, >= 2 x the band's frequency) |
 | coupling | K^T e_i tau_j; K^T (d tau/d q_j q_i + d tau/d q_d_j q_d_i + M e_j q_dd_i); i on a grid (neighbours, K-coupled) | both paths significant and within 20 % -> coefficient c (rad/rad), from_joint = i |
 
 w = motor speed, theta = motor angle, tau_rigid = M(q) q_dd + h + g of the model (joint side), H_tau a first-order
@@ -1238,8 +1238,9 @@ class BacklashRattle(Term):
     where a vertical base axis shows it little and its rattling link is chaotic (the exact play replayed on the
     recorded motion does worse than nothing). Not told apart: a joint's spring whose resonance lies below the
     oscillation decouples the link too, so an elastic joint in a limit cycle reads as a play (bench cases 56, 100,
-    103; neither the share alpha split by the transmitted load nor the swing's harmonics separate them,
-    docs/diagnosis.md)."""
+    103, and since ``ALPHA_RANGE`` reaches 2 all four 250 Hz elastic shoulders, 29, 49, 103, 109, at alpha 1.39-1.44
+    beside the plays' 1.43-1.46; neither the share alpha split by the transmitted load nor the swing's harmonics
+    separate them, docs/diagnosis.md)."""
     kind, band, own_motor, above_band = "backlash", "wide", True, True
     hyper_name = "gear oscillation above the torque band"
     MIN_SWING = 0.002     # rad joint side, peak to peak: the gear's angle above the band on the benchmark's arms
@@ -1257,6 +1258,11 @@ class BacklashRattle(Term):
         return col
 
     SAME_CYCLE = 0.05     # relative: two joints' gears oscillating this close in frequency swing in one cycle
+    ALPHA_RANGE = (0.2, 2.0)   # a free link misses up to 1 (it stays put); one bounced back from the flanks moves
+                               # against the gear and misses more: the benchmark's 250 Hz shoulder plays (gravity
+                               # keeps the link on a flank, each swing knocks it back) read 1.43-1.46 on their own
+                               # joint (cases 120, 135, 138, 147; 1.2 was the bound until 2026-11-25 and named
+                               # nothing there but torque offsets), the elbow they shake 2.9-3.4
 
     @staticmethod
     def oscillation(rd, j) -> tuple[float, float]:
@@ -1294,10 +1300,11 @@ class BacklashRattle(Term):
         k = float(m_typ * (2 * np.pi * f_osc) ** 2)
         d = float(2 * 0.3 * np.sqrt(k * m_typ))
         swings = width >= self.MIN_SWING and f_osc >= 2 * f_band
-        ok = alpha > 3 * std[0] and 0.2 < alpha < 1.2 and swings and width < 0.2
+        lo, hi = self.ALPHA_RANGE
+        ok = alpha > 3 * std[0] and lo < alpha < hi and swings and width < 0.2
         why = ("" if ok else "share of the link's torque missing not significant" if not alpha > 3 * std[0] else
-               f"share of the link's fast torque missing ({alpha:.2f}) is not a free link's (0.2-1.2)"
-               if not 0.2 < alpha < 1.2 else
+               f"share of the link's fast torque missing ({alpha:.2f}) is not a free link's ({lo:g}-{hi:g})"
+               if not lo < alpha < hi else
                f"the gear does not oscillate above the band ({width:.2g} rad peak to peak at {f_osc:.3g} Hz; a play "
                f"is read here only from an oscillation of at least {self.MIN_SWING:g} rad above {2 * f_band:g} Hz)"
                if not swings else f"the gear's oscillation ({width:.3g} rad) is not a play")

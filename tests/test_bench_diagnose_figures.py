@@ -1,7 +1,7 @@
 """The README's and docs/diagnosis.md's benchmark figures are what scripts/bench_diagnose.py computes from its
-committed rows: docs/bench/diagnose-bench-{all,fresh,hard,new}-2026-11-25-fresh.json (all 160 cases recorded again
-with this release's simulator and diagnosed with this release; -recorded: the same recordings, the last stop's code
-plus the band fix), -2026-11-24-rattle.json (the last stop, on the recordings kept from earlier stops: a base axis'
+committed rows: docs/bench/diagnose-bench-{all,fresh,hard,new}-2026-11-25-stop21.json (this release on the last
+stop's recordings), -2026-11-25-fresh.json (the last stop: all 160 cases recorded again with its simulator and
+diagnosed with its code; -recorded: the same recordings, the code of the stop before plus the band fix), -2026-11-24-rattle.json (the last stop, on the recordings kept from earlier stops: a base axis'
 play read from the gear's oscillation), -nores (earlier in this release: an elastic
 joint's resonance inside the torque band reported, not refused), -acc (the last stop: the
 prediction filtered once, a compliance judged on its own motor), and the stops' before:
@@ -475,6 +475,11 @@ def _fresh_section() -> str:
                         DOC.index("### This release: a base axis' play")].split())
 
 
+def _stop21_section() -> str:
+    return " ".join(DOC[DOC.index("### 2026-11-25, stop 21:"):DOC.index("### 2026-11-25: every case recorded again")]
+                    .split())
+
+
 def _totals(sets) -> tuple:
     return (sum(sets[k][1]["effects_found"] for k in ACC_SETS), sum(sets[k][1]["effects"] for k in ACC_SETS),
             sum(sets[k][1]["clean_none"] for k in ACC_SETS), sum(sets[k][1]["clean"] for k in ACC_SETS),
@@ -494,12 +499,6 @@ def test_fresh_rates_per_set_and_totals_in_the_readme_and_docs_are_the_benchmark
         assert line in section, line
     assert _totals(fresh) == (142, 186, 21, 21, 43) and _totals(recorded) == (142, 186, 20, 21, 44)
     assert "the code of the last stop plus the band fix gave 142 of 186, clean 20 of 21 and 44 false names" in section
-    readme = " ".join(README.split())
-    assert ("**142 of 186 concealed effects (76 %, goal 90 %; 143 at the last stop, on the recordings kept from "
-            "earlier stops)** and nothing on **21 of 21 clean cases (100 %, goal 95 %)**") in readme
-    assert ("cases 0-71 **68 of 83 (82 %)**, clean 11 of 11; 72-95 25 of 30; the hard kinds 96-135 **30 of 46 (65 %)**; "
-            "136-159 **19 of 27 (70 %)**") in readme
-    assert "**43 false names** (44 on the same recordings before this release's changes; 39 on the kept ones)" in readme
 
 
 def test_this_releases_code_changes_only_cases_22_103_106_on_the_same_recordings(fresh, recorded):
@@ -541,7 +540,6 @@ def test_fresh_base_axis_plays_compliances_and_torque_offsets(fresh):
                 sum(sum(fresh[k][1]["confusion"][kind].values()) for k in ACC_SETS))
     assert count("backlash") == (22, 31) and count("joint_elasticity") == (17, 32)
     assert "Backlash is named 22 of 31 times, joint elasticity 17 of 32 (15)" in section
-    assert "All 16 base-axis plays are named; backlash 22 of 31 times, joint elasticity 17 of 32." in README
     offsets = {k: fresh[k][1]["false_names"].get("torque_offset", 0) for k in ACC_SETS}
     assert offsets == {"all": 1, "fresh": 0, "hard": 9, "new": 5}
     assert "Torque offsets are the largest false kind: 15** (9 in 96-135, 5 in 136-159, 1 in 0-71)" in section
@@ -566,6 +564,125 @@ def test_fresh_parameter_errors_in_the_readme_and_docs_are_the_benchmarks(fresh)
     assert ("payload mass 1.1 %, 73 % (n = 5); backlash width 23.8 %, 74 % (n = 8); elasticity stiffness 16.9 %, 43 % "
             "(n = 8); cogging amplitude 4.5 %, 6.6 %; Stribeck v_s 45 %, 59 % (the shape taken as 2); thermal time "
             "constant 6.8 %, 49 %; coupling 1.9 %, 5.7 %") in section
+
+
+# --- stop 21: the same recordings as -fresh, diagnosed with this release ----------------------------------------------
+@pytest.fixture(scope="module")
+def stop21():
+    return _scored_sets("stop21", "2026-11-25")
+
+
+def test_stop21_rates_per_set_and_totals_in_the_readme_and_docs_are_the_benchmarks(stop21, fresh):
+    want = {"all": ((69, 83), (64, 68), (11, 11), 9), "fresh": ((25, 30), (24, 25), (3, 3), 3),
+            "hard": ((32, 46), (31, 38), (4, 4), 21), "new": ((21, 27), (19, 22), (3, 3), 10)}
+    _assert_rates(stop21, want)
+    section = _stop21_section()
+    for line in ("| 0-71 | **69 of 83 (83 %)** | 64 of 68 (94 %) | **11 of 11** | 9 |",
+                 "| 72-95 | 25 of 30 (83 %) | 24 of 25 (96 %) | 3 of 3 | 3 |",
+                 "| 96-135 (hard kinds) | **32 of 46 (70 %)** | 31 of 38 (82 %) | 4 of 4 | 21 |",
+                 "| 136-159 | **21 of 27 (78 %)** | 19 of 22 (86 %) | 3 of 3 | 10 |",
+                 "| all 160 | **147 of 186 (79 %)** | 138 of 153 (90 %) | **21 of 21 (100 %)** | **43** |"):
+        assert line in section, line
+    assert _totals(stop21) == (147, 186, 21, 21, 43) and _totals(fresh) == (142, 186, 21, 21, 43)
+    assert "The last stop's code on the same recordings: 142 of 186, clean 21 of 21, 43 false names" in section
     readme = " ".join(README.split())
-    assert "(median error 24 %, max 74 %)" in readme and "(median 17 %, max 43 %)" in readme
-    assert "(payload mass median 1.1 %, max 73 %)" in readme
+    assert ("**147 of 186 concealed effects (79 %, goal 90 %; 142 at the last stop, on the same recordings)** and "
+            "nothing on **21 of 21 clean cases (100 %, goal 95 %)**") in readme
+    assert ("cases 0-71 **69 of 83 (83 %)**, clean 11 of 11; 72-95 25 of 30; the hard kinds 96-135 **32 of 46 (70 %)**; "
+            "136-159 **21 of 27 (78 %)**") in readme
+    assert "**43 false names** (43 at the last stop too)" in readme
+    assert "138 of the 153 visible effects are named" in readme
+
+
+def test_stop21_changes_only_these_cases_on_the_same_recordings(stop21, fresh):
+    """The same recordings, the last stop's code against this release: what each change did, case by case."""
+    a = {r["seed"]: r for k in ACC_SETS for r in fresh[k][0]}
+    b = {r["seed"]: r for k in ACC_SETS for r in stop21[k][0]}
+    assert [r["effects"] for r in a.values()] == [r["effects"] for r in b.values()]        # the same draws
+
+    def names(r):
+        return sorted((f["kind"], f["joint"]) for f in r["named"])
+    changed = {s: (names(a[s]), names(b[s])) for s in a if names(a[s]) != names(b[s])}
+    assert sorted(changed) == [20, 29, 49, 53, 65, 97, 109, 117, 120, 135, 138, 147]
+    # the stiff contact and the point mass moved only alike
+    assert changed[65] == ([("joint_elasticity", 2), ("thermal_drift", 5)], [("backlash", 2), ("thermal_drift", 5)])
+    assert changed[53][1] == [("load_dependent_friction", 1), ("payload_change", 4), ("payload_change", 5)]
+    assert ("coupling", 2) in changed[53][0] and ("payload_change", 4) not in changed[53][0]
+    # the shoulders' plays named; the elastic shoulders read as plays
+    for seed in (20, 120, 135, 138, 147):
+        assert ("backlash", 1) in changed[seed][1] and ("backlash", 1) not in changed[seed][0], seed
+    for seed in (29, 49, 109):
+        assert ("joint_elasticity", 1) in changed[seed][0] and ("backlash", 1) in changed[seed][1], seed
+    assert changed[97] == ([], [("backlash", 0)])
+    assert ("backlash", 2) in changed[117][1] and ("backlash", 1) in changed[117][1]
+    section = _stop21_section()
+    assert "(cases 20, 120, 135, 138, 147)" in section and "(cases 29, 49, 109; 103 already did)" in section
+    assert "Case 65: b 0.054 rad for the true 0.052" in section and "Case 53: 0.72 kg on link 5" in section
+
+
+def test_stop21_confusion_matrix_in_the_readme_is_the_benchmarks(stop21):
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_diagnose
+
+    rows = [r for k in ACC_SETS for r in stop21[k][0]]
+    s = bench_diagnose.score(rows)
+    cols = ["nothing", "stribeck", "cogging", "payload_change", "thermal_drift", "load_dependent_friction",
+            "asymmetric_friction", "joint_elasticity", "backlash", "coupling", "torque_offset"]
+    for kind, row in s["confusion"].items():
+        label = "none (21 clean cases)" if kind == "none" else kind
+        line = f"| {label} | " + " | ".join(str(row[c]) if row[c] else "." for c in cols) + " |"
+        assert line in README, line
+    fn = {k: v for k, v in s["false_names"].items() if v}
+    assert fn == {"backlash": 14, "torque_offset": 14, "payload_change": 7, "joint_elasticity": 6, "thermal_drift": 1,
+                  "asymmetric_friction": 1}
+    readme = " ".join(README.split())
+    assert ("(false names): backlash 14, torque offset 14, payload 7, elasticity 6, thermal drift 1, asymmetric "
+            "friction 1") in readme
+
+
+def test_stop21_counts_and_parameter_errors_in_the_readme_and_docs_are_the_benchmarks(stop21):
+    import numpy as np
+
+    rows = [r for k in ACC_SETS for r in stop21[k][0]]
+
+    def count(kind):
+        return (sum(stop21[k][1]["confusion"][kind][kind] for k in ACC_SETS),
+                sum(sum(stop21[k][1]["confusion"][kind].values()) for k in ACC_SETS))
+    assert count("backlash") == (29, 31) and count("joint_elasticity") == (14, 32)
+    assert count("cogging") == (22, 26) and count("coupling") == (19, 29) and count("payload_change") == (8, 8)
+    plays = [r for r in rows if any(e["kind"] == "backlash" and e["joints"] == [0] for e in r["effects"])]
+    assert len(plays) == 16 and all(any(f["kind"] == "backlash" and f["joint"] == 0 for f in r["named"]) for r in plays)
+    shoulders = [r for r in rows if r["cycle_hz"] == 250.0 and any(e["kind"] == "backlash" and e["joints"] == [1]
+                                                                    for e in r["effects"])]
+    assert sorted(r["seed"] for r in shoulders) == [20, 120, 135, 138, 147]
+    assert all(any(f["kind"] == "backlash" and f["joint"] == 1 for f in r["named"]) for r in shoulders)
+    # payload: right link 8 of 8, mass within 5 % on 6 (17 and 29 not)
+    within = {}
+    for r in rows:
+        for e in r["effects"]:
+            if e["kind"] == "payload_change":
+                f = [f for f in r["named"] if f["kind"] == "payload_change" and f["joint"] == e["joints"][0]]
+                assert f, r["seed"]
+                within[r["seed"]] = abs(f[0]["effect"]["mass"] - e["mass"]) / e["mass"] < 0.05
+    assert sorted(s for s, ok in within.items() if not ok) == [17, 29] and len(within) == 8
+    readme = " ".join(README.split())
+    assert "backlash 29 of 31 times, joint elasticity 14 of 32. A payload is named on the right link 8 of 8 times, " \
+           "its mass within 5 % on 6 of them." in readme
+    err = stop21["all"][1]["param_errors"]
+    want = [("payload_change", "mass", 6, 2.6, 73), ("backlash", "width", 10, 23.8, 74),
+            ("joint_elasticity", "stiffness", 6, 8.2, 30), ("cogging", "amplitude", 8, 4.5, 6.6),
+            ("stribeck", "velocity", 5, 45, 59), ("thermal_drift", "time_constant", 11, 6.8, 49),
+            ("coupling", "coefficient", 8, 1.9, 5.7)]
+    for kind, key, n, med, top in want:
+        v = [100 * e[key]["rel_error"] for e in err[kind] if key in e and np.isfinite(e[key]["rel_error"])]
+        assert len(v) == n, kind
+        assert float(np.median(v)) == pytest.approx(med, abs=0.5 if med >= 10 else 0.06), kind
+        assert float(np.max(v)) == pytest.approx(top, abs=0.5 if top >= 10 else 0.05), kind
+    section = _stop21_section()
+    assert ("payload mass 2.6 %, 73 % (n = 6); backlash width 23.8 %, 74 % (n = 10); elasticity stiffness 8.2 %, 30 % "
+            "(n = 6); cogging amplitude 4.5 %, 6.6 %; Stribeck v_s 45 %, 59 %; thermal time constant 6.8 %, 49 %; "
+            "coupling 1.9 %, 5.7 %") in section
+    assert ("Counts: backlash named 29 of 31 times (22), joint elasticity 14 of 32 (17; 9 read as a play), cogging 22 "
+            "of 26, coupling 19 of 29; payload on the right link 8 of 8, its mass within 5 % on 6") in section
+    assert "(median error 24 %, max 74 %)" in readme and "(median 8.2 %, max 30 %)" in readme
+    assert "(payload mass median 2.6 %, max 73 %)" in readme
