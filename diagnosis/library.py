@@ -71,6 +71,7 @@ class Term:
                           # column): once accepted it adds nothing to the model in the band (the torque filter of
                           # its column is a filtering artefact, not a torque the motors carry)
     min_counts = 0.0      # a torque (RMS, select rows) of at least this many counts of the current read-back
+    yields = False        # a reference that steps aside for a named term passing every test on its own motor
     search_caches: tuple = ()   # rd.extra keys of what the term keeps for the search alone (``grid_columns(...,
                                 # keep=True)``, ``store_bytes``): MismatchSearch.fit drops them when it ends
 
@@ -282,9 +283,18 @@ class BreakawayTransient(Term):
     and the torque filter smears that step into the first moving samples. Column: [|w| < 2 w_min] sgn(w_next)
     (w_min the motor's --min-speed threshold, w_next the direction the axis breaks away to), filtered like the
     torque. Plus the plain refit it contains. A Stribeck hump must explain more than this (``extends``): a hump
-    that only follows the filtered breakaway step is the stiction any arm has, not a friction curve over speed."""
+    that only follows the filtered breakaway step is the stiction any arm has, not a friction curve over speed.
+
+    It lives in the slow rows, where a cogging ripple shows too (the drive carries it where the motor turns slowly),
+    so it ``yields``: when it tops the ladder and a named term passes every test on its motor, the named term is
+    accepted first (:class:`diagnosis.search.MismatchSearch`). Bench cases 107 and 116 (500 Hz wrists, 24 per
+    revolution, the exact ripple removes 70-75 %): the cogging passed every test, the transient took the slow rows
+    first, and the cogging's fit gain fell to 11 %. Yielding on every reference was measured too: it also names a
+    torque offset (case 111) and a play (137) that a refit of the model's friction explains, so
+    ``friction_refit``, the null of another day, does not yield."""
     kind, reference = "breakaway_transient", True
     extends = ("friction_refit",)
+    yields = True
 
     def columns(self, rd, j, h):
         w = _moving(rd, j)

@@ -27,7 +27,9 @@ axes, on either of two links), the term says which to name.
 The null the data give: a term that contains a simpler one (``Term.extends``: e.g. a thermal drift contains a plain
 refit of the model's friction, which any recording of another day may need) must cut what the simpler one leaves on
 the select rows by its ``Term.margin`` more (a quarter; 4 % for a backlash over its spring); the simpler reference terms (``Term.reference``) are never named an effect
-— when one passes, the motor is reported ``unexplained`` (structure remains that no named physics explains).
+— when one passes, the motor is reported ``unexplained`` (structure remains that no named physics explains). A
+reference that ``Term.yields`` (the stiction step at reversals) steps aside when it tops the ladder and a named term
+passes every test on its motor.
 """
 from __future__ import annotations
 
@@ -364,6 +366,9 @@ class MismatchSearch:
                     break
             if best is None:
                 break
+            if best.term.yields:                   # a reference that steps aside for a named term on its motor
+                best = next((s for s in scored if s.term is not None and not s.term.reference
+                             and s.fitted.joint == best.fitted.joint and not self._why_rejected(s)), best)
             best = best.term.resolve(rd, best, scored, lambda s: not self._why_rejected(s))  # one mass, two links
             # selected on SELECT: its coefficients are now estimated on FIT + SELECT (hyper-parameter kept); the
             # report rows stay unseen
