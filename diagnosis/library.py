@@ -586,7 +586,7 @@ class PayloadChange(Term):
         One point explains the data alike from either link: an outer reading that leaves more than ``SAME_FIT`` times
         the chosen one's SELECT residual is another physics, not the same point. Bench case 53 (0.75 kg on link 5,
         5.7 cm off its axis) had its link-6 reading 4.8 cm away leave 3.2x link 5's residual (select gains 64 % and
-        89 %), then a torque offset on motor 6 named to mend it; the moves this rule exists for leave 1.0x (bench)
+        89 %), then a false coupling named to mend it; the moves this rule exists for leave 1.0x (bench)
         and 1.36x (the real kuka_3 payload: 74 % on the inner link, 64 % on the hand, which carries it)."""
         e0 = chosen.fitted.effect
         p0 = self.world_points(rd, chosen.fitted.joint, e0["com"])

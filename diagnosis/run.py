@@ -132,8 +132,8 @@ class DiagnosisResult:
             return "the model leaves out: " + "; ".join(f"{f['kind']} on {f['joint']} ({f['summary']})"
                                                        for f in self.findings())
         if self.search.references_:
-            return ("unexplained: the residual has structure on " + ", ".join(
-                self.rd.joints[s.fitted.joint] for s in self.search.references_)
+            return ("unexplained: the residual has structure on " + ", ".join(dict.fromkeys(   # each joint once
+                self.rd.joints[s.fitted.joint] for s in self.search.references_))
                 + " that no named effect explains better than a refit of the model's own terms: nothing named")
         return "none: no candidate term improves the fit on held-out data enough: nothing named"
 
