@@ -173,13 +173,16 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
     log = join_logs(logs)
     notes = []
     library = LIBRARY
-    inputs = {str(i.get("sha256")) for i in (mdl.raw.get("inputs") or []) if i.get("sha256")}
-    own = [p.name for p, lg in zip(paths, logs) if lg.sha256 and lg.sha256 in inputs]
+    # the model's own recordings: the same file (sha256) or the same data written again (data_sha256: imported
+    # twice, the file's metadata differs)
+    inputs = {str(i.get(key)) for i in (mdl.raw.get("inputs") or []) for key in ("sha256", "data_sha256")
+              if i.get(key)}
+    own = [p.name for p, lg in zip(paths, logs) if {lg.sha256, lg.data_sha256} & inputs]
     if own:
         library = model_data_library(LIBRARY)
-        notes.append(f"{', '.join(own)}: the model was identified from this recording (its sha256 is one of the "
-                     "model's inputs), so a constant torque per motor is a choice of the model's own structure "
-                     "(`js2-identify --offsets`), reported unexplained, not named")
+        notes.append(f"{', '.join(own)}: the model was identified from this recording (its sha256 or its data's is "
+                     "one of the model's inputs), so a constant torque per motor is a choice of the model's own "
+                     "structure (`js2-identify --offsets`), reported unexplained, not named")
     if len(paths) > 1:
         notes.append(f"one session over {len(paths)} files, joined in the order given (each filtered on its own): "
                      + ", ".join(p.name for p in paths))

@@ -3,7 +3,7 @@
 ``model.yaml`` is read back by ``js2spec.model.load_model`` (the one loader). Keys: ``joints``,
 ``friction: {static, coulomb, viscous}`` (+ ``*_std``, per direction), ``motor_inertia`` (per motor, kg m^2, motor side;
 ``motor_inertia_std``, ``motor_inertia_separately_identified``), ``base_parameters: {names, values, std}``,
-``validation: {rms, nrms}``, ``method``, ``inputs`` (path + sha256 of each log), ``condition_number``, ``links`` (the
+``validation: {rms, nrms}``, ``method``, ``inputs`` (path + sha256 + data_sha256 of each log), ``condition_number``, ``links`` (the
 physically consistent standard parameters), ``methods`` (all estimates: mixed/simultaneous x RLS/OLS/WLS).
 """
 from __future__ import annotations

@@ -271,8 +271,8 @@ def identify(paths, options: IdentifyOptions | None = None, _notes=()) -> Identi
     n = arm.n
     inputs = []
     for lg in logs:
-        inputs.append({"path": str(lg.path), "sha256": lg.sha256, "source": lg.source, "truncated": bool(lg.truncated),
-                       "trials": lg.trials()})
+        inputs.append({"path": str(lg.path), "sha256": lg.sha256, "data_sha256": lg.data_sha256, "source": lg.source,
+                       "truncated": bool(lg.truncated), "trials": lg.trials()})
         if lg.recovered_note:        # truncated, corrupt mid-file, or repaired
             notes.append(f"{lg.path}: {lg.recovered_note}; identified from what was recovered")
         for w in lg.warnings:

@@ -285,6 +285,20 @@ class Js2Log:
         return self.meta.get("robot", "")
 
     @property
+    def data_sha256(self) -> str:
+        """sha256 of what was recorded -- the feedback's times, motor positions, torques, currents and validity --
+        apart from the file's metadata (its ``created`` time, ``source``), so the same recording imported or
+        written twice has one ``data_sha256`` and two file ``sha256``. Made once per log."""
+        if not hasattr(self, "_data_sha256"):
+            fb = self.feedback
+            h = hashlib.sha256()
+            for a in (fb.t, fb.motor_position, fb.torque, fb.motor_current, fb.valid):
+                if a is not None:
+                    h.update(np.ascontiguousarray(a).tobytes())
+            self._data_sha256 = h.hexdigest()
+        return self._data_sha256
+
+    @property
     def command(self) -> CommandArrays | None:
         """The /js2/command channel as arrays (None if the log has none); decoded lazily: identification rarely needs it."""
         if not hasattr(self, "_command"):

@@ -121,6 +121,15 @@ def test_clean_real_tx40_recording_names_no_effect(tmp_path):
     assert any("identified from this recording" in n for n in d["notes"])
     assert any("thermal drift not looked for" in n for n in d["notes"])
     assert [u["joint"] for u in d["unexplained"] if u["reference"] == "torque_offset"] == ["joint_6"]
+    # the same recording imported again: another file (its metadata differs), the same data (data_sha256)
+    from identification.examples.real_arms import import_tx40
+    from js2spec.log import read_log
+
+    again = import_tx40(REAL, tmp_path / "again.mcap", source_text="imported again")
+    first, second = read_log(tmp_path / "tx40.mcap"), read_log(again)
+    assert first.sha256 != second.sha256 and first.data_sha256 == second.data_sha256
+    d2 = prove.diagnose_cli(tmp_path / "model", again, tmp_path / "diag_again")
+    assert d2["findings"] == [] and any("identified from this recording" in n for n in d2["notes"])
 
 
 def test_payload_added_to_a_real_recording_is_found_within_10_percent(payload_200hz):

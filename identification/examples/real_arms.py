@@ -28,13 +28,13 @@ DEFAULT_DATA = HERE.parents[2] / "shared" / "data" / "real"
 FLOBAROID_CAD_FRICTION_RMS = [0.36, 1.55, 0.49, 0.98, 0.63, 0.49, 0.27]
 
 
-def import_tx40(data: Path, out: Path) -> Path:
+def import_tx40(data: Path, out: Path, source_text: str | None = None) -> Path:
     from identification import importer as im
 
     d = data / "staubli_tx40"
     rec = im.load_csvs(d / "data" / "pos_read_data.csv", d / "data" / "curr_data.csv", rate=5000.0)
     return im.write_log(rec, d / "kinematics" / "tx40_mdh_modified.urdf", HERE / "staubli_tx40" / "drives.yaml",
-                        out, robot="staubli_tx40", rate=5000.0,
+                        out, robot="staubli_tx40", rate=5000.0, source_text=source_text,
                         trials=[("excitation", 0.0, 24750 / 5000), ("validation", 29250 / 5000, 45000 / 5000)])
 
 
