@@ -272,7 +272,7 @@ def test_one_point_mass_is_moved_to_the_outer_link_only_when_it_explains_the_dat
     """PayloadChange.resolve: a payload read on link 5 and again on link 6 within SAME_POINT_M and SAME_MASS is one
     point, named on the outer link -- unless the outer reading leaves more than SAME_FIT times the chosen one's
     select residual (bench case 53: 0.75 kg on link 5, select gains 89 % on link 5 and 64 % on link 6, the move
-    then mended with a false torque offset; the real kuka_3 payload's move leaves 1.36x and is kept)."""
+    then mended with a false coupling; the real kuka_3 payload's move leaves 1.36x and is kept)."""
     from diagnosis.library import Fitted, PayloadChange
     from diagnosis.search import Scored
 
