@@ -29,6 +29,28 @@ def _scored(which: str) -> tuple[list, dict]:
     return rows, bench_diagnose.score(rows)
 
 
+CONFUSION_COLS = ["nothing", "stribeck", "cogging", "payload_change", "thermal_drift", "load_dependent_friction",
+                  "asymmetric_friction", "joint_elasticity", "backlash", "coupling", "torque_offset"]
+
+
+def _confusion_line(label: str, row: dict) -> str:
+    """One confusion-matrix row as the README and docs print it ('.' for an empty cell)."""
+    return f"| {label} | " + " | ".join(str(row[c]) if row[c] else "." for c in CONFUSION_COLS) + " |"
+
+
+def _rel_errors(err: dict, kind: str, key: str) -> list:
+    """bench_diagnose's parameter errors of ``kind``'s ``key`` in percent, the finite ones."""
+    import numpy as np
+
+    return [100 * e[key]["rel_error"] for e in err[kind] if key in e and np.isfinite(e[key]["rel_error"])]
+
+
+def _count(sets: dict, kind: str) -> tuple:
+    """(named right, concealed) of ``kind`` over the four sets."""
+    return (sum(sets[k][1]["confusion"][kind][kind] for k in ACC_SETS),
+            sum(sum(sets[k][1]["confusion"][kind].values()) for k in ACC_SETS))
+
+
 @pytest.fixture(scope="module")
 def scored():
     return _scored("all-2026-11-24")
@@ -51,12 +73,9 @@ def test_rates_in_the_readme_are_the_benchmarks(scored):
 def test_confusion_rows_in_the_docs_are_the_benchmarks(scored):
     _, s = scored
     conf = s["confusion"]
-    cols = ["nothing", "stribeck", "cogging", "payload_change", "thermal_drift", "load_dependent_friction",
-            "asymmetric_friction", "joint_elasticity", "backlash", "coupling", "torque_offset"]
     for kind, row in conf.items():
-        cells = " | ".join(str(row[c]) if row[c] else "." for c in cols)
-        label = "none (11 clean cases)" if kind == "none" else kind
-        assert f"| {label} | {cells} |" in DOC, (kind, cells)
+        line = _confusion_line("none (11 clean cases)" if kind == "none" else kind, row)
+        assert line in DOC, line
     assert conf["backlash"]["backlash"] == 5 and conf["joint_elasticity"]["joint_elasticity"] == 0
     # the visible misses the docs list: elasticity 0 of 5, backlash 4
     missed = [m[2] for m in s["visible_missed"]]
@@ -70,7 +89,7 @@ def test_parameter_errors_in_the_docs_are_the_benchmarks(scored):
     err = s["param_errors"]
 
     def med_max(kind, key):
-        v = [100 * e[key]["rel_error"] for e in err[kind] if key in e and np.isfinite(e[key]["rel_error"])]
+        v = _rel_errors(err, kind, key)
         return float(np.median(v)), float(np.max(v)), len(v)
 
     for kind, key, row in [("payload_change", "mass", "| payload | mass | 1.8 % | 48 % | 5"),
@@ -143,19 +162,16 @@ def test_held_confusion_rows_and_parameter_errors_in_the_docs_are_the_benchmarks
     import numpy as np
 
     _, s = held
-    cols = ["nothing", "stribeck", "cogging", "payload_change", "thermal_drift", "load_dependent_friction",
-            "asymmetric_friction", "joint_elasticity", "backlash", "coupling", "torque_offset"]
     for kind, row in s["confusion"].items():
-        cells = " | ".join(str(row[c]) if row[c] else "." for c in cols)
-        label = "none (11 clean cases)" if kind == "none" else kind
-        assert f"| {label} | {cells} |" in DOC, (kind, cells)
+        line = _confusion_line("none (11 clean cases)" if kind == "none" else kind, row)
+        assert line in DOC, line
     err = s["param_errors"]
     for kind, key, med_doc, max_doc, n_doc in [("payload_change", "mass", 1.3, 45, 5), ("stribeck", "velocity", 45, 111, 5),
                                                ("cogging", "amplitude", 1.6, 16, 8),
                                                ("thermal_drift", "time_constant", 5.8, 15, 10),
                                                ("coupling", "coefficient", 1.3, 7.2, 8), ("backlash", "width", 17.6, 29, 4),
                                                ("joint_elasticity", "stiffness", 16.5, 16.5, 1)]:
-        v = [100 * e[key]["rel_error"] for e in err[kind] if key in e and np.isfinite(e[key]["rel_error"])]
+        v = _rel_errors(err, kind, key)
         assert len(v) == n_doc, kind
         for got, doc in ((float(np.median(v)), med_doc), (float(np.max(v)), max_doc)):
             assert got == pytest.approx(doc, abs=0.05 if doc != int(doc) else 0.5), (kind, got, doc)
@@ -283,23 +299,17 @@ def test_acc_totals_against_the_last_stop(acc):
 
 
 def test_acc_compliance_counts_and_confusion_rows(acc):
-    def count(kind):
-        got = sum(acc[k][1]["confusion"][kind][kind] for k in ACC_SETS)
-        return got, sum(sum(acc[k][1]["confusion"][kind].values()) for k in ACC_SETS)
-    assert count("joint_elasticity") == (14, 32) and count("backlash") == (13, 31)
+    assert _count(acc, "joint_elasticity") == (14, 32) and _count(acc, "backlash") == (13, 31)
     held = {w: _scored(f"{w}-2026-11-24-held")[1] for w in ACC_SETS}
     assert sum(held[w]["confusion"]["joint_elasticity"]["joint_elasticity"] for w in ACC_SETS) == 1
     assert sum(held[w]["confusion"]["backlash"]["backlash"] for w in ACC_SETS) == 8
     per_set = {w: (acc[w][1]["confusion"]["joint_elasticity"]["joint_elasticity"],
                    acc[w][1]["confusion"]["backlash"]["backlash"]) for w in ACC_SETS}
     assert per_set == {"all": (8, 6), "fresh": (0, 0), "hard": (4, 4), "new": (2, 3)}
-    cols = ["nothing", "stribeck", "cogging", "payload_change", "thermal_drift", "load_dependent_friction",
-            "asymmetric_friction", "joint_elasticity", "backlash", "coupling", "torque_offset"]
     section = DOC[DOC.index("### The last stop: the prediction filtered once"):DOC.index("### Two stops ago:")]
     for kind, row in acc["all"][1]["confusion"].items():
-        cells = " | ".join(str(row[c]) if row[c] else "." for c in cols)
-        label = "none (11 clean cases)" if kind == "none" else kind
-        assert f"| {label} | {cells} |" in section, (kind, cells)
+        line = _confusion_line("none (11 clean cases)" if kind == "none" else kind, row)
+        assert line in section, line
     # the one clean case named in 96-135: a thermal drift on case 132 at a negative report gain
     rows, s = acc["hard"]
     clean_named = [(r["seed"], f["kind"], round(f["report_gain"], 2)) for r in rows if not r["effects"]
@@ -318,7 +328,7 @@ def test_acc_parameter_errors_in_the_docs_are_the_benchmarks(acc):
                                                ("coupling", "coefficient", 1.9, 5.7, 8),
                                                ("backlash", "width", 15.3, 60, 6),
                                                ("joint_elasticity", "stiffness", 11.2, 36, 8)]:
-        v = [100 * e[key]["rel_error"] for e in err[kind] if key in e and np.isfinite(e[key]["rel_error"])]
+        v = _rel_errors(err, kind, key)
         assert len(v) == n_doc, kind
         for got, doc in ((float(np.median(v)), med_doc), (float(np.max(v)), max_doc)):
             assert got == pytest.approx(doc, abs=0.05 if doc != int(doc) else 0.5), (kind, got, doc)
@@ -373,15 +383,11 @@ def test_nores_totals_and_what_changed(nores, acc):
 def test_nores_compliance_counts_and_stiffness_errors(nores):
     import numpy as np
 
-    def count(kind):
-        got = sum(nores[k][1]["confusion"][kind][kind] for k in ACC_SETS)
-        return got, sum(sum(nores[k][1]["confusion"][kind].values()) for k in ACC_SETS)
-    assert count("joint_elasticity") == (15, 32) and count("backlash") == (13, 31)
+    assert _count(nores, "joint_elasticity") == (15, 32) and _count(nores, "backlash") == (13, 31)
     per_set = {w: (nores[w][1]["confusion"]["joint_elasticity"]["joint_elasticity"],
                    nores[w][1]["confusion"]["backlash"]["backlash"]) for w in ACC_SETS}
     assert per_set == {"all": (8, 6), "fresh": (0, 0), "hard": (4, 4), "new": (3, 3)}
-    v = [100 * e["stiffness"]["rel_error"] for e in nores["all"][1]["param_errors"]["joint_elasticity"]
-         if "stiffness" in e and np.isfinite(e["stiffness"]["rel_error"])]
+    v = _rel_errors(nores["all"][1]["param_errors"], "joint_elasticity", "stiffness")
     assert len(v) == 8
     assert float(np.median(v)) == pytest.approx(17.4, abs=0.05) and float(np.max(v)) == pytest.approx(46, abs=0.5)
     section = DOC[DOC.index("### Earlier in this release: an elastic joint's resonance"):DOC.index("### The last stop:")]
@@ -389,7 +395,7 @@ def test_nores_compliance_counts_and_stiffness_errors(nores):
     # the other parameters of 0-71 are the last stop's, as the section says
     err = nores["all"][1]["param_errors"]
     for kind, key, med in [("payload_change", "mass", 2.2), ("cogging", "amplitude", 4.2), ("backlash", "width", 15.3)]:
-        v = [100 * e[key]["rel_error"] for e in err[kind] if key in e and np.isfinite(e[key]["rel_error"])]
+        v = _rel_errors(err, kind, key)
         assert float(np.median(v)) == pytest.approx(med, abs=0.05), kind
 
 
@@ -451,8 +457,7 @@ def rattle_row(rows, seed):
 def test_rattle_width_errors_in_the_docs_are_the_benchmarks(rattle):
     import numpy as np
 
-    v = [100 * e["width"]["rel_error"] for e in rattle["all"][1]["param_errors"]["backlash"]
-         if "width" in e and np.isfinite(e["width"]["rel_error"])]
+    v = _rel_errors(rattle["all"][1]["param_errors"], "backlash", "width")
     assert len(v) == 8
     assert float(np.median(v)) == pytest.approx(23.8, abs=0.05) and float(np.max(v)) == pytest.approx(74, abs=0.5)
     flat = " ".join(_rattle_section().split())
@@ -535,10 +540,7 @@ def test_fresh_base_axis_plays_compliances_and_torque_offsets(fresh):
     section = _fresh_section()
     assert "0.92-0.98 on nine (the six at 250 Hz, three at 500 Hz), 0.17-0.48 on the other seven" in section
 
-    def count(kind):
-        return (sum(fresh[k][1]["confusion"][kind][kind] for k in ACC_SETS),
-                sum(sum(fresh[k][1]["confusion"][kind].values()) for k in ACC_SETS))
-    assert count("backlash") == (22, 31) and count("joint_elasticity") == (17, 32)
+    assert _count(fresh, "backlash") == (22, 31) and _count(fresh, "joint_elasticity") == (17, 32)
     assert "Backlash is named 22 of 31 times, joint elasticity 17 of 32 (15)" in section
     offsets = {k: fresh[k][1]["false_names"].get("torque_offset", 0) for k in ACC_SETS}
     assert offsets == {"all": 1, "fresh": 0, "hard": 9, "new": 5}
@@ -556,7 +558,7 @@ def test_fresh_parameter_errors_in_the_readme_and_docs_are_the_benchmarks(fresh)
             ("stribeck", "velocity", 5, 45, 59), ("thermal_drift", "time_constant", 11, 6.8, 49),
             ("coupling", "coefficient", 8, 1.9, 5.7)]
     for kind, key, n, med, top in want:
-        v = [100 * e[key]["rel_error"] for e in err[kind] if key in e and np.isfinite(e[key]["rel_error"])]
+        v = _rel_errors(err, kind, key)
         assert len(v) == n, kind
         assert float(np.median(v)) == pytest.approx(med, abs=0.5 if med >= 10 else 0.05), kind
         assert float(np.max(v)) == pytest.approx(top, abs=0.5 if top >= 10 else 0.05), kind
@@ -629,11 +631,8 @@ def test_stop21_confusion_matrix_in_the_readme_is_the_benchmarks(stop21):
 
     rows = [r for k in ACC_SETS for r in stop21[k][0]]
     s = bench_diagnose.score(rows)
-    cols = ["nothing", "stribeck", "cogging", "payload_change", "thermal_drift", "load_dependent_friction",
-            "asymmetric_friction", "joint_elasticity", "backlash", "coupling", "torque_offset"]
     for kind, row in s["confusion"].items():
-        label = "none (21 clean cases)" if kind == "none" else kind
-        line = f"| {label} | " + " | ".join(str(row[c]) if row[c] else "." for c in cols) + " |"
+        line = _confusion_line("none (21 clean cases)" if kind == "none" else kind, row)
         assert line in README, line
     fn = {k: v for k, v in s["false_names"].items() if v}
     assert fn == {"backlash": 14, "torque_offset": 14, "payload_change": 7, "joint_elasticity": 6, "thermal_drift": 1,
@@ -648,11 +647,9 @@ def test_stop21_counts_and_parameter_errors_in_the_readme_and_docs_are_the_bench
 
     rows = [r for k in ACC_SETS for r in stop21[k][0]]
 
-    def count(kind):
-        return (sum(stop21[k][1]["confusion"][kind][kind] for k in ACC_SETS),
-                sum(sum(stop21[k][1]["confusion"][kind].values()) for k in ACC_SETS))
-    assert count("backlash") == (29, 31) and count("joint_elasticity") == (14, 32)
-    assert count("cogging") == (24, 26) and count("coupling") == (19, 29) and count("payload_change") == (8, 8)
+    assert _count(stop21, "backlash") == (29, 31) and _count(stop21, "joint_elasticity") == (14, 32)
+    assert _count(stop21, "cogging") == (24, 26) and _count(stop21, "coupling") == (19, 29)
+    assert _count(stop21, "payload_change") == (8, 8)
     plays = [r for r in rows if any(e["kind"] == "backlash" and e["joints"] == [0] for e in r["effects"])]
     assert len(plays) == 16 and all(any(f["kind"] == "backlash" and f["joint"] == 0 for f in r["named"]) for r in plays)
     shoulders = [r for r in rows if r["cycle_hz"] == 250.0 and any(e["kind"] == "backlash" and e["joints"] == [1]
@@ -677,7 +674,7 @@ def test_stop21_counts_and_parameter_errors_in_the_readme_and_docs_are_the_bench
             ("stribeck", "velocity", 5, 45, 59), ("thermal_drift", "time_constant", 11, 6.8, 49),
             ("coupling", "coefficient", 8, 1.9, 5.7)]
     for kind, key, n, med, top in want:
-        v = [100 * e[key]["rel_error"] for e in err[kind] if key in e and np.isfinite(e[key]["rel_error"])]
+        v = _rel_errors(err, kind, key)
         assert len(v) == n, kind
         assert float(np.median(v)) == pytest.approx(med, abs=0.5 if med >= 10 else 0.06), kind
         assert float(np.max(v)) == pytest.approx(top, abs=0.5 if top >= 10 else 0.05), kind
