@@ -21,6 +21,7 @@ drawn; never seen by the search). See :func:`split_rows`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
@@ -31,6 +32,7 @@ from identification.signals import (NYQUIST_MARGIN, PAPER_FC_ACCELERATION_HZ, PA
 from identification.trials import trial_spans
 from js2spec.drives import at_rest, motor_rest_speed
 from js2spec.errors import Js2Error
+from js2spec.log import read_log
 from js2spec.model import IdentifiedModel
 
 
@@ -333,3 +335,56 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
                         select_rows=sel, min_speed_motor=v_motor, torque_side=side,
                         torque_step_motor=torque_step(drives),
                         at_rest=rest)
+
+
+@dataclass
+class OwnOffsets:
+    """The constant torque per motor (N*m, motor side) the model leaves on the recordings it was identified from:
+    the mean of the residual over their moving rows (``offset``, (n,)) and that mean's standard error from the
+    spread of its one-second block means (``std``, (n,)); ``names``: the recordings'."""
+    offset: np.ndarray
+    std: np.ndarray
+    names: list
+
+
+def own_offsets(model: IdentifiedModel, min_speed: float = 0.01, block_s: float = 1.0) -> OwnOffsets | None:
+    """:class:`OwnOffsets` of the model's fitted ``inputs`` (model.yaml; validation recordings left out) that can
+    still be read where they were (the path as written, else beside model.yaml) and are unchanged (sha256, or the
+    data's); None when none can. A constant a new recording carries that the model's own recording carries too is
+    the model's structure (js2-identify leaves offsets out by cross-validation), not physics the new one adds."""
+    parts, names = [], []
+    base = Path(model.path).parent if model.path else Path(".")
+    for item in model.raw.get("inputs") or []:
+        if item.get("role") == "validation" or not item.get("path"):
+            continue
+        p = Path(str(item["path"]))
+        p = p if p.is_file() else base / p.name
+        if not p.is_file():
+            continue
+        try:
+            lg = read_log(p)
+            if item.get("sha256") not in (lg.sha256,) and item.get("data_sha256") not in (lg.data_sha256,):
+                continue
+            rd = residual_data(model, lg, min_speed=min_speed)
+        except (Js2Error, OSError, ValueError):
+            continue
+        parts.append((rd.residual, rd.mask, rd.t))
+        names.append(p.name)
+    if not parts:
+        return None
+    n = parts[0][0].shape[1]
+    offset, std = np.full(n, np.nan), np.full(n, np.nan)
+    for j in range(n):
+        vals, blocks = [], []
+        for r, m, t in parts:
+            v, b = r[m[:, j], j], np.floor(t[m[:, j]] / block_s).astype(int)
+            if len(v):
+                vals.append(v)
+                cnt = np.bincount(b - b.min())
+                blocks.append((np.bincount(b - b.min(), weights=v))[cnt > 0] / cnt[cnt > 0])
+        if not vals:
+            continue
+        offset[j] = float(np.mean(np.concatenate(vals)))
+        blocks = np.concatenate(blocks)
+        std[j] = float(np.std(blocks) / np.sqrt(len(blocks))) if len(blocks) > 1 else float("inf")
+    return OwnOffsets(offset=offset, std=std, names=names)

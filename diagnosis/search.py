@@ -55,6 +55,7 @@ class Scored:
     note: str = ""               # why it was named instead of the candidate the ladder reached (Term.resolve)
     term: Term | None = None     # the library term that made it (a kind may be tried in two bands)
     select_gain_own: float = float("nan")   # select rows, motor j's alone (the joint the term is named on)
+    demoted: str = ""            # why a term that passed every test is reported unexplained, not named
     counts: float = float("nan")             # RMS of the term's torque on the select rows, in counts of the drive's
                                              # current read-back, on the motor where it is largest (made only for a
                                              # term with a floor, ``Term.min_counts``)

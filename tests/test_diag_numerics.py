@@ -313,3 +313,53 @@ def test_a_play_on_a_stiff_contact_is_named_with_its_stiffness_bounded_from_belo
     assert ok and eff["stiffness"] == pytest.approx(1 / 3.3e-4) and "at least" not in summary       # resolved
     assert not term.effect(rd, 2, None, np.array([0.0115, -8e-4]), np.array([1.4e-4, 1.1e-5]))[2]  # negative
     assert not term.effect(rd, 2, None, np.array([2e-4, 1e-4]), np.array([1.6e-4, 4e-5]))[2]       # no play
+
+
+def test_an_elasticity_that_would_lag_its_link_by_more_than_a_transmission_deflects_is_not_named():
+    """JointElasticity.effect: the compliance 1/k times the joint's rigid torque (99th percentile) is the lag it
+    implies; over MAX_DEFLECTION (0.05 rad) it is refused with that reason. Bench: true elasticities lag
+    0.0018-0.015 rad, the false ones on the elbow 0.16-0.24 rad; the real TX40 had k = 0.72 N*m/rad named."""
+    from diagnosis.library import JointElasticity
+
+    N, n = 400, 3
+    tau = np.tile([20.0, -20.0], N // 2)[:, None] * np.ones((1, n))
+    rd = SimpleNamespace(tau_rigid_joint=tau, mask=np.ones((N, n), bool),
+                         extra={"M": np.tile(0.5 * np.eye(n), (N, 1, 1))}, joints=["j1", "j2", "j3"],
+                         signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=7.0)))
+    term = JointElasticity()
+    assert term.effect(rd, 1, None, np.array([1 / 2000.0]), np.array([1e-5]))[2]        # 0.01 rad: named
+    eff, _, ok, why = term.effect(rd, 1, None, np.array([1 / 150.0]), np.array([1e-5]))  # 0.13 rad
+    assert not ok and "would lag its gear by 0.13 rad" in why and eff["stiffness"] == pytest.approx(150.0)
+    assert term.effect(rd, 1, None, np.array([0.049 / 20.0]), np.array([1e-5]))[2]       # just under the ceiling
+
+
+def test_an_offset_the_models_own_recording_carries_too_is_reported_not_named():
+    """TorqueOffset.resolve with ``rd.extra["own_offsets"]`` (made on first use): an offset within SAME_OWN
+    standard errors of the one the model leaves on its own recording becomes the reference OwnRecordingOffset
+    (unexplained), with that recording named in its note; a different one, or no readable own recording, stays."""
+    from diagnosis.library import Fitted, OwnRecordingOffset, TorqueOffset
+    from diagnosis.residual import OwnOffsets
+    from diagnosis.search import Scored
+
+    def scored(c, std=0.0002):
+        fit = Fitted(kind="torque_offset", joint=5, hyper=None, coef=np.array([c]), coef_std=np.array([std]),
+                     effect={"offset": c}, summary="", plausible=True, why_not="")
+        return Scored(fitted=fit, fit_gain=0.3, select_gain=0.3, select_gain_all=0.1, holdout_gain=0.3,
+                      rms_before=np.ones(6), rms_after=np.ones(6), band="low")
+
+    made = []
+
+    def lazily():
+        made.append(1)
+        return OwnOffsets(offset=np.r_[np.zeros(5), 0.0057], std=np.r_[np.full(5, 1e-3), 0.0006], names=["own.mcap"])
+
+    rd = SimpleNamespace(extra={"own_offsets": lazily})
+    term = TorqueOffset()
+    same = term.resolve(rd, scored(0.0060), [])
+    assert isinstance(same.term, OwnRecordingOffset) and same.term.reference
+    assert "own.mcap, the model's own, carries +0.0057" in same.note
+    other = scored(0.0120)                                        # 0.0063 away: 10 standard errors
+    assert term.resolve(rd, other, []) is other
+    assert made == [1]                                            # read once
+    assert term.resolve(SimpleNamespace(extra={"own_offsets": lambda: None}), other, []) is other
+    assert term.resolve(SimpleNamespace(extra={}), other, []) is other
