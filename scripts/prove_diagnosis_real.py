@@ -24,6 +24,10 @@ K = I, no trial labels), with the plain commands.
    Butterworth) carried to the motors (K^T tau_joint) and added to the recorded motor torques -> payload_change on
    the hand, within 10 %, and nothing else named (the +0.006 N*m the recording itself carries on motor 6 against the
    model identified from it stays unexplained).
+8. other effects on real noise: kuka_2 with one friction-law or ripple effect's torque added along the recorded
+   motion (``REAL_EFFECTS``: an asymmetric Coulomb friction, a Stribeck hump, a cogging ripple, a load-dependent
+   friction, a torque offset, each on one joint, in the hil_sim effect's own form) -> that effect named on that
+   joint.
 
     .venv/bin/python scripts/prove_diagnosis_real.py [--data ../shared/data/real] [--out runs/prove_diagnosis_real]
 """
@@ -100,6 +104,41 @@ def tx40_clean(data: Path, out: Path) -> dict:
     if not log.is_file():
         import_tx40(data, log)
     return diagnose_cli(identify(log, out / "model"), log, out / "diag")
+
+
+def _sgn_moving(v: np.ndarray, v_min: float = 0.01) -> np.ndarray:
+    return np.where(np.abs(v) > v_min, np.sign(v), 0.0)
+
+
+# step 8: name -> (joint index, torque (N*m, joint side = motor side on this K = I arm) added along the recorded
+# positions q, the provider's velocities v, the recorded torque tau and the model's Coulomb friction fc), the form of
+# hil_sim's effect of that kind (js2spec.effects), and the effect's parameters for the table
+REAL_EFFECTS = {
+    "asymmetric_friction": (4, lambda q, v, tau, fc: np.where(v[:, 4] < -0.01, -0.5 * fc[4], 0.0),
+                            "negative_scale 1.5 on joint 4's Coulomb friction"),
+    "stribeck": (3, lambda q, v, tau, fc: _sgn_moving(v[:, 3]) * 1.0 * np.exp(-(np.abs(v[:, 3]) / 0.15) ** 2),
+                 "a 1 N*m hump, v_s 0.15 rad/s, shape 2, on joint 3"),
+    "cogging": (1, lambda q, v, tau, fc: 0.6 * np.sin(36 * q[:, 1] + 0.3), "0.6 N*m, 36 per revolution, on joint 1"),
+    "load_dependent_friction": (1, lambda q, v, tau, fc: 0.05 * np.abs(tau[:, 1]) * _sgn_moving(v[:, 1]),
+                                "mu 0.05 of joint 1's load"),
+    "torque_offset": (2, lambda q, v, tau, fc: np.full(len(q), 0.8), "0.8 N*m on joint 2"),
+}
+
+
+def effect_log(data: Path, out: Path, kind: str, model: Path, which: int = 2) -> Path:
+    """kuka_<which> with REAL_EFFECTS[kind]'s torque added on its joint (step 8), written with js2-import's writer."""
+    from identification import importer as im
+    from js2spec.model import load_model
+
+    d, urdf, drives = _kuka_paths(data)
+    raw = np.load(d / "data" / f"measurements_{which}.npz")
+    rec = im.load_npz(d / "data" / f"measurements_{which}.npz")
+    j, fn, _ = REAL_EFFECTS[kind]
+    fc = np.asarray(load_model(model).friction_coulomb, float)
+    added = np.zeros_like(rec.torque)
+    added[:, j] = fn(raw["positions"], raw["velocities"], rec.torque, fc)
+    rec.torque = rec.torque + added
+    return im.write_log(rec, urdf, drives, out, robot="kuka_lwr4", rate=200.0, positions_side="joint")
 
 
 def tx40_payload_log(data: Path, out: Path, mass: float = TX40_PAYLOAD_MASS, com=TX40_PAYLOAD_COM,
@@ -203,6 +242,13 @@ def main(argv=None) -> int:
                      "com": pay[0]["effect"]["com"] if pay else None,
                      "report_gain": pay[0]["holdout_gain"] if pay else None,
                      "unexplained": [u["joint"] for u in d["unexplained"]]})
+    for kind, (j, _, what) in REAL_EFFECTS.items():
+        lg = effect_log(a.data, a.out / f"kuka_2_{kind}.mcap", kind, model)
+        d = diagnose_cli(model, lg, a.out / f"diag_{lg.stem}")
+        rows.append({"recording": lg.name, "added": what, "verdict": d["verdict"].split(":")[0],
+                     "named": [f"{f['kind']} on {f['joint']}" for f in d["findings"]],
+                     "unexplained": [u["joint"] for u in d["unexplained"]],
+                     "right": any(f["kind"] == kind and f["joint_index"] == j for f in d["findings"])})
     for r in rows:
         true = r.get("true_mass", PAYLOAD_MASS)
         extra = (f"  mass {r['mass']:.3f} kg (error {abs(r['mass'] - true) / true:.1%}), com "

@@ -185,6 +185,30 @@ def test_a_short_piece_of_a_real_recording_names_nothing(tx40):
     assert short and all(f"(at least {MIN_NAMING_SPAN_S:g} s)" in u["what"] for u in short)
 
 
+@pytest.mark.parametrize("kind", list(prove.REAL_EFFECTS))
+def test_an_effect_added_to_a_real_recording_is_named_on_its_joint(kuka, tmp_path, kind):
+    """Prove step 8: kuka_2 (real noise, real model error) with one effect's torque added along the recorded motion,
+    in hil_sim's form of that kind: named on its joint with the plain command. The asymmetric friction (scale 1.5
+    on joint 4) had been read as a torque offset: its columns lacked the viscous column of the friction refit it
+    must beat, and this recording's joint 4 refits its viscous friction by -0.75 N*m*s/rad."""
+    j = prove.REAL_EFFECTS[kind][0]
+    log = prove.effect_log(REAL, tmp_path / f"kuka_2_{kind}.mcap", kind, kuka["model"])
+    d = prove.diagnose_cli(kuka["model"], log, tmp_path / "d")
+    named = [(f["kind"], f["joint_index"]) for f in d["findings"]]
+    assert (kind, j) in named, d["verdict"]
+    f = next(f for f in d["findings"] if f["kind"] == kind)
+    if kind == "asymmetric_friction":
+        assert f["effect"]["negative_scale"] == pytest.approx(1.41, abs=0.03)
+    elif kind == "stribeck":
+        assert f["effect"]["velocity"] == pytest.approx(0.15, rel=0.1)
+    elif kind == "cogging":
+        assert f["effect"]["periods_per_rev"] == 36 and f["effect"]["amplitude"] == pytest.approx(0.6, rel=0.15)
+    elif kind == "load_dependent_friction":
+        assert f["effect"]["coefficient"] == pytest.approx(0.05, rel=0.1)
+    else:
+        assert f["effect"]["offset"] == pytest.approx(0.8, rel=0.05)
+
+
 def test_payload_added_to_a_real_recording_is_found_within_10_percent(payload_200hz):
     log, d = payload_200hz
     pay = [f for f in d["findings"] if f["kind"] == "payload_change"]
