@@ -758,9 +758,15 @@ def test_stop22_counts_and_parameter_errors_in_the_readme_are_the_benchmarks(sto
                 assert f, r["seed"]
                 within[r["seed"]] = abs(f[0]["effect"]["mass"] - e["mass"]) / e["mass"] < 0.05
     assert sorted(s for s, ok in within.items() if not ok) == [17, 29] and len(within) == 8
+    case29 = next(r for r in rows if r["seed"] == 29)
+    m29 = next(f["effect"]["mass"] for f in case29["named"] if f["kind"] == "payload_change")
+    true29 = next(e["mass"] for e in case29["effects"] if e["kind"] == "payload_change")
+    assert round(100 * (m29 / true29 - 1)) == -47
     readme = " ".join(README.split())
     assert "backlash 29 of 31 times, joint elasticity 14 of 32. A payload is named on the right link 8 of 8 times, " \
            "its mass within 5 % on 6 of them." in readme
+    assert "case 29 (-47 %, beside an elastic shoulder; -30 % at the last stop" in readme
+    assert "reads 0.162 kg (-47 %); it read 0.213 (-30 %)" in _stop22_section()
     err = stop22["all"][1]["param_errors"]
     for kind, key, med, top in [("payload_change", "mass", 2.6, 73), ("backlash", "width", 23.8, 74),
                                 ("joint_elasticity", "stiffness", 8.2, 30)]:
