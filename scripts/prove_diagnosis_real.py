@@ -27,7 +27,7 @@ K = I, no trial labels), with the plain commands.
 8. other effects on real noise: kuka_2 with one friction-law or ripple effect's torque added along the recorded
    motion (``REAL_EFFECTS``: an asymmetric Coulomb friction, a Stribeck hump, a cogging ripple, a load-dependent
    friction, a torque offset, each on one joint, in the hil_sim effect's own form) -> that effect named on that
-   joint.
+   joint; and the same on kuka_3 (the recording with the larger model error) for the spread.
 
     .venv/bin/python scripts/prove_diagnosis_real.py [--data ../shared/data/real] [--out runs/prove_diagnosis_real]
 """
@@ -242,8 +242,8 @@ def main(argv=None) -> int:
                      "com": pay[0]["effect"]["com"] if pay else None,
                      "report_gain": pay[0]["holdout_gain"] if pay else None,
                      "unexplained": [u["joint"] for u in d["unexplained"]]})
-    for kind, (j, _, what) in REAL_EFFECTS.items():
-        lg = effect_log(a.data, a.out / f"kuka_2_{kind}.mcap", kind, model)
+    for which, (kind, (j, _, what)) in ((w, e) for w in (2, 3) for e in REAL_EFFECTS.items()):
+        lg = effect_log(a.data, a.out / f"kuka_{which}_{kind}.mcap", kind, model, which=which)
         d = diagnose_cli(model, lg, a.out / f"diag_{lg.stem}")
         rows.append({"recording": lg.name, "added": what, "verdict": d["verdict"].split(":")[0],
                      "named": [f"{f['kind']} on {f['joint']}" for f in d["findings"]],
