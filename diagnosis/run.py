@@ -211,7 +211,7 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
     search = MismatchSearch(library=library, kinds=opt.kinds, min_gain=opt.min_gain, max_terms=opt.max_terms,
                             progress=progress).fit(rd)
     span = float(rd.t[-1] - rd.t[0])
-    if span < MIN_NAMING_SPAN_S and search.accepted_:
+    if span < MIN_NAMING_SPAN_S:
         for s in search.accepted_:
             s.demoted = (f"{s.fitted.kind} fits here ({s.fitted.summary}), but {span:.3g} s of recording is too short "
                          f"to name an effect (at least {MIN_NAMING_SPAN_S:g} s)")

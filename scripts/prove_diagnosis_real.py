@@ -125,8 +125,9 @@ REAL_EFFECTS = {
 }
 
 
-def effect_log(data: Path, out: Path, kind: str, model: Path, which: int = 2) -> Path:
-    """kuka_<which> with REAL_EFFECTS[kind]'s torque added on its joint (step 8), written with js2-import's writer."""
+def effect_log(data: Path, out: Path, kind: str, model: Path, which: int = 2, decimate: int = 1) -> Path:
+    """kuka_<which> with REAL_EFFECTS[kind]'s torque added on its joint (step 8), optionally decimated (every
+    ``decimate``-th sample), written with js2-import's writer."""
     from identification import importer as im
     from js2spec.model import load_model
 
@@ -138,7 +139,9 @@ def effect_log(data: Path, out: Path, kind: str, model: Path, which: int = 2) ->
     added = np.zeros_like(rec.torque)
     added[:, j] = fn(raw["positions"], raw["velocities"], rec.torque, fc)
     rec.torque = rec.torque + added
-    return im.write_log(rec, urdf, drives, out, robot="kuka_lwr4", rate=200.0, positions_side="joint")
+    if decimate > 1:
+        rec.t, rec.position, rec.torque = rec.t[::decimate], rec.position[::decimate], rec.torque[::decimate]
+    return im.write_log(rec, urdf, drives, out, robot="kuka_lwr4", rate=200.0 / decimate, positions_side="joint")
 
 
 def tx40_payload_log(data: Path, out: Path, mass: float = TX40_PAYLOAD_MASS, com=TX40_PAYLOAD_COM,

@@ -24,11 +24,9 @@ README_MASS = {2: 1.849, 1: 1.903, 3: 1.882}     # kg found for the 2 kg payload
 
 
 @pytest.fixture(scope="module")
-def kuka(tmp_path_factory):
-    work = tmp_path_factory.mktemp("kuka_diag")
-    logs = prove.import_logs(REAL, work)
-    model = prove.identify(logs[0], work / "model")
-    return {"work": work, "logs": logs, "model": model}
+def kuka(kuka_diag):
+    """The imported recordings and the plain js2-identify model (conftest: made once per session)."""
+    return kuka_diag
 
 
 @pytest.fixture(scope="module")
@@ -174,15 +172,47 @@ def test_a_short_piece_of_a_real_recording_names_nothing(tx40):
     the reason."""
     from diagnosis.run import MIN_NAMING_SPAN_S
 
+    from identification import importer as im
+    from identification.examples.real_arms import HERE as EX
+
     work, _ = tx40
-    piece = work / "piece.mcap"
-    piece.write_bytes((work / "tx40.mcap").read_bytes()[:1_000_000])
+    d_real = REAL / "staubli_tx40"
+    rec = im.load_csvs(d_real / "data" / "pos_read_data.csv", d_real / "data" / "curr_data.csv", rate=5000.0)
+    keep = 12726                  # what a cut at 1 MB recovers: 2.545 s of the excitation (the same samples here,
+    rec.t, rec.position, rec.torque = rec.t[:keep], rec.position[:keep], rec.torque[:keep]   # cut by samples)
+    piece = im.write_log(rec, d_real / "kinematics" / "tx40_mdh_modified.urdf", EX / "staubli_tx40" / "drives.yaml",
+                         work / "piece.mcap", robot="staubli_tx40", rate=5000.0,
+                         trials=[("excitation", 0.0, keep / 5000)])
     d = prove.diagnose_cli(work / "model", piece, work / "diag_piece")
-    assert d["findings"] == [] and d["verdict"].startswith("unexplained"), d["verdict"]
+    assert d["findings"] == [] and d["verdict"].startswith(("unexplained", "none")), d["verdict"]
     assert any(n.startswith("nothing named: the recording spans 2.5") for n in d["notes"])
-    assert any("recovered" in n for n in d["notes"])
+
+
+def test_an_effect_in_a_recording_under_5_s_is_reported_not_named(kuka, tmp_path):
+    """The demotion itself: kuka_2 with a 0.8 N*m torque offset added (named alone on the whole recording, step 8),
+    cut to its first 4 s: the search passes the offset, and torque offsets on three joints nothing was added to
+    (lwr_4, lwr_5, lwr_6) -- why nothing is named from so short a recording; all four are reported unexplained
+    with the reason."""
+    from diagnosis.run import MIN_NAMING_SPAN_S
+    from identification import importer as im
+    from js2spec.log import read_log
+
+    full = read_log(prove.effect_log(REAL, tmp_path / "full.mcap", "torque_offset", kuka["model"]))
+    fb = full.feedback
+    keep = fb.t - fb.t[0] < 4.0
+    rec = im.Recording(t=fb.t[keep], position=fb.motor_position[keep], torque=fb.torque[keep], current=None,
+                       source="kuka_2 + offset, first 4 s")
+    _, urdf, drives = prove._kuka_paths(REAL)
+    piece = im.write_log(rec, urdf, drives, tmp_path / "piece.mcap", robot="kuka_lwr4", rate=200.0,
+                         positions_side="joint")
+    d = prove.diagnose_cli(kuka["model"], piece, tmp_path / "d")
+    assert d["findings"] == [], d["verdict"]
+    assert any(n.startswith("nothing named: the recording spans 4") for n in d["notes"])
     short = [u for u in d["unexplained"] if "too short to name an effect" in u["what"]]
-    assert short and all(f"(at least {MIN_NAMING_SPAN_S:g} s)" in u["what"] for u in short)
+    demoted = [(u["reference"], u["joint_index"]) for u in short]
+    # the added offset among them, and what 4 s also "showed": offsets on three joints nothing was added to
+    assert ("torque_offset", 2) in demoted and len(demoted) == 4, demoted
+    assert all(f"(at least {MIN_NAMING_SPAN_S:g} s)" in u["what"] for u in short)
 
 
 @pytest.mark.parametrize("kind", list(prove.REAL_EFFECTS))

@@ -21,12 +21,11 @@ _spec.loader.exec_module(prove)
 
 
 @pytest.fixture(scope="module")
-def kuka_payload(tmp_path_factory):
+def kuka_payload(tmp_path_factory, kuka_diag):
     from diagnosis.cli import main
 
     work = tmp_path_factory.mktemp("kuka_replay")
-    logs = prove.import_logs(REAL, work)
-    model = prove.identify(logs[0], work / "model")
+    model = kuka_diag["model"]                        # the plain js2-identify kuka_1.mcap (conftest, shared)
     log = prove.payload_log(REAL, work / "kuka_2_payload.mcap")
     assert main([str(model), str(log), "-o", str(work / "diag"), "--replay", "-q"]) == 0
     return work, model, log, json.loads((work / "diag" / "diagnosis.json").read_text())
