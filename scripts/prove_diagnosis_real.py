@@ -256,6 +256,8 @@ def main(argv=None) -> int:
         true = r.get("true_mass", PAYLOAD_MASS)
         extra = (f"  mass {r['mass']:.3f} kg (error {abs(r['mass'] - true) / true:.1%}), com "
                  f"{np.round(r['com'], 3).tolist()} m, report gain {r['report_gain']:.1%}" if r.get("mass") else "")
+        if "right" in r:
+            extra += "  (named on its joint)" if r["right"] else "  (NOT named on its joint)"
         print(f"{r['recording']:<26} added: {r['added']:<40} named: {', '.join(r['named']) or 'nothing':<40} "
               f"unexplained: {', '.join(r['unexplained']) or '-'}{extra}")
     (a.out / "summary.json").write_text(json.dumps(rows, indent=1))
