@@ -775,3 +775,33 @@ def test_stop22_counts_and_parameter_errors_in_the_readme_are_the_benchmarks(sto
         assert float(np.max(v)) == pytest.approx(top, abs=0.5), kind
     assert "(median error 24 %, max 74 %)" in readme and "(median 8.2 %, max 30 %)" in readme
     assert "(payload mass median 2.6 %, max 73 %)" in readme
+
+
+def test_stop22_out_of_sample_cases_in_the_readme_and_docs_are_the_benchmarks():
+    """Cases 160-199, drawn after this release's changes: their rows before and after the ramp rule made from them."""
+    before_rows, before = _scored("oos-2026-11-25-stop22")
+    after_rows, after = _scored("oos-2026-11-25-stop22-ramp")
+    assert [r["seed"] for r in before_rows] == list(range(160, 200)) == [r["seed"] for r in after_rows]
+    for s, false in ((before, 13), (after, 12)):  # a clean case's false name counts among the clean
+        assert (s["effects_found"], s["effects"]) == (32, 47) and (s["visible_found"], s["visible"]) == (28, 40)
+        assert _false(s) == false
+    assert (before["clean_none"], before["clean"]) == (2, 3) and (after["clean_none"], after["clean"]) == (3, 3)
+
+    def names(r):
+        return sorted((f["kind"], f["joint"]) for f in r["named"])
+    changed = {a["seed"] for a, b in zip(before_rows, after_rows) if names(a) != names(b)}
+    assert changed == {179, 191}
+    c191 = next(r for r in before_rows if r["seed"] == 191)
+    assert c191["effects"] == [] and [f["kind"] for f in c191["named"]] == ["thermal_drift"]
+    readme = " ".join(README.split())
+    assert ("**32 of 47 (68 %)**, 28 of 40 visible, **clean 2 of 3**, 13 false names") in readme
+    assert "gives clean 3 of 3 and 12 false names" in readme
+    section = " ".join(DOC[DOC.index("### 2026-11-25, stop 22, out of sample"):
+                           DOC.index("### 2026-11-25, stop 22: an elasticity's lag")].split())
+    for line in ("| 160-199, out of sample | **32 of 47 (68 %)** | 28 of 40 (70 %) | **2 of 3** | 13 |",
+                 "| the same, with the ramp rule made from it | 32 of 47 | 28 of 40 | 3 of 3 | 12 |"):
+        assert line in section, line
+    for kind, right, total in (("backlash", 10, 13), ("cogging", 8, 12), ("joint_elasticity", 7, 13),
+                               ("coupling", 3, 4), ("thermal_drift", 4, 4), ("payload_change", 0, 1)):
+        row = before["confusion"][kind]
+        assert (row[kind], sum(row.values())) == (right, total), kind

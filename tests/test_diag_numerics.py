@@ -363,3 +363,22 @@ def test_an_offset_the_models_own_recording_carries_too_is_reported_not_named():
     assert made == [1]                                            # read once
     assert term.resolve(SimpleNamespace(extra={"own_offsets": lambda: None}), other, []) is other
     assert term.resolve(SimpleNamespace(extra={}), other, []) is other
+
+
+def test_a_thermal_lag_at_the_slowest_time_constant_tried_is_a_ramp_and_not_named():
+    """ThermalDrift.effect: the grid ends at 4x the recording's span; a best fit there is a ramp over the recording
+    (new bench cases 179 and 191, one clean, had drifts named at exactly 4.0x their span), refused with the reason;
+    a lag inside the grid is named as before."""
+    from diagnosis.library import ThermalDrift
+
+    rd = SimpleNamespace(t=np.linspace(0.0, 51.5, 100))
+    term = ThermalDrift()
+    top = term.grid(rd, 4)[-1][0]
+    assert top == pytest.approx(4 * 51.5)
+    eff, summary, ok, why = term.effect(rd, 4, (top, "friction_power"), np.array([0.11, 0.0, 0.0]),
+                                        np.array([0.01, 1.0, 1.0]))
+    assert not ok and "a ramp over the recording" in why and "the slowest tried" in summary
+    assert eff["time_constant"] == pytest.approx(top)
+    _, _, ok, why = term.effect(rd, 4, (36.0, "friction_power"), np.array([0.11, 0.0, 0.0]), np.array([0.01, 1, 1]))
+    assert ok and why == ""
+    assert not term.effect(rd, 4, (36.0, "current_squared"), np.array([0.01, 0, 0]), np.array([0.01, 1, 1]))[2]
