@@ -161,6 +161,8 @@ class MismatchSearch:
         if gram is not None:      # the term's normal equations without its columns: SSE = b'b - 2 c'A'b + c'G c
             bb, best = float(b @ b), None
             for h, G, Ab in gram:
+                if not (np.all(np.isfinite(G)) and np.all(np.isfinite(Ab))):
+                    continue          # a grid point whose columns are not finite (a simulated link that diverged)
                 coef = np.linalg.lstsq(G, Ab, rcond=None)[0]
                 sse = max(bb - 2.0 * float(coef @ Ab) + float(coef @ G @ coef), 0.0)
                 if best is None or sse < best[0]:
@@ -182,8 +184,8 @@ class MismatchSearch:
             items = []
             for h, X in grid_columns:
                 A = X * w_sub
-                if not np.any(A):
-                    continue
+                if not np.any(A) or not np.all(np.isfinite(A)):
+                    continue                   # nothing there, or not finite (a simulated link that diverged)
                 items.append((h, A, A.T @ A))    # normal equations on the (k x k) Gram matrix: few columns, many rows
                 if keep and len(items) == 1:
                     keep = self._cache_used + A.nbytes * len(hs) <= self.CACHE_BYTES
