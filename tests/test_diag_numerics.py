@@ -327,6 +327,7 @@ def test_an_elasticity_that_would_lag_its_link_by_more_than_a_transmission_defle
                          extra={"M": np.tile(0.5 * np.eye(n), (N, 1, 1))}, joints=["j1", "j2", "j3"],
                          signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=7.0)))
     term = JointElasticity()
+    assert JointElasticity.MAX_DEFLECTION == 0.05                                         # the README's figure
     assert term.effect(rd, 1, None, np.array([1 / 2000.0]), np.array([1e-5]))[2]        # 0.01 rad: named
     eff, _, ok, why = term.effect(rd, 1, None, np.array([1 / 150.0]), np.array([1e-5]))  # 0.13 rad
     assert not ok and "would lag its gear by 0.13 rad" in why and eff["stiffness"] == pytest.approx(150.0)
