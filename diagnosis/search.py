@@ -184,9 +184,12 @@ class MismatchSearch:
             items = []
             for h, X in grid_columns:
                 A = X * w_sub
-                if not np.any(A) or not np.all(np.isfinite(A)):
-                    continue                   # nothing there, or not finite (a simulated link that diverged)
-                items.append((h, A, A.T @ A))    # normal equations on the (k x k) Gram matrix: few columns, many rows
+                if not np.any(A):
+                    continue
+                G = A.T @ A                      # normal equations on the (k x k) Gram matrix: few columns, many rows
+                if not np.all(np.isfinite(G)):
+                    continue                     # columns not finite (a simulated link that diverged): G shows it
+                items.append((h, A, G))
                 if keep and len(items) == 1:
                     keep = self._cache_used + A.nbytes * len(hs) <= self.CACHE_BYTES
                     self._cache_used += A.nbytes * len(hs) if keep else 0
