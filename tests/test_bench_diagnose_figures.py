@@ -568,6 +568,31 @@ def test_fresh_parameter_errors_in_the_readme_and_docs_are_the_benchmarks(fresh)
             "constant 6.8 %, 49 %; coupling 1.9 %, 5.7 %") in section
 
 
+def _changed_names(before: dict, after: dict) -> dict:
+    """seed -> (names before, names after) where the two scored sets' rows name different (kind, joint) pairs; the
+    two must be the same draws."""
+    a = {r["seed"]: r for k in ACC_SETS for r in before[k][0]}
+    b = {r["seed"]: r for k in ACC_SETS for r in after[k][0]}
+    assert [r["effects"] for r in a.values()] == [r["effects"] for r in b.values()]        # the same draws
+
+    def names(r):
+        return sorted((f["kind"], f["joint"]) for f in r["named"])
+    return {s: (names(a[s]), names(b[s])) for s in a if names(a[s]) != names(b[s])}
+
+
+def _payload_within_5(rows: list) -> dict:
+    """seed -> whether the payload named on the concealed payload's link has its mass within 5 % (every concealed
+    payload must be named on its link)."""
+    within = {}
+    for r in rows:
+        for e in r["effects"]:
+            if e["kind"] == "payload_change":
+                f = [f for f in r["named"] if f["kind"] == "payload_change" and f["joint"] == e["joints"][0]]
+                assert f, r["seed"]
+                within[r["seed"]] = abs(f[0]["effect"]["mass"] - e["mass"]) / e["mass"] < 0.05
+    return within
+
+
 # --- stop 21: the same recordings as -fresh, diagnosed with this release ----------------------------------------------
 @pytest.fixture(scope="module")
 def stop21():
@@ -591,13 +616,7 @@ def test_stop21_rates_per_set_and_totals_in_the_readme_and_docs_are_the_benchmar
 
 def test_stop21_changes_only_these_cases_on_the_same_recordings(stop21, fresh):
     """The same recordings, the last stop's code against this release: what each change did, case by case."""
-    a = {r["seed"]: r for k in ACC_SETS for r in fresh[k][0]}
-    b = {r["seed"]: r for k in ACC_SETS for r in stop21[k][0]}
-    assert [r["effects"] for r in a.values()] == [r["effects"] for r in b.values()]        # the same draws
-
-    def names(r):
-        return sorted((f["kind"], f["joint"]) for f in r["named"])
-    changed = {s: (names(a[s]), names(b[s])) for s in a if names(a[s]) != names(b[s])}
+    changed = _changed_names(fresh, stop21)
     assert sorted(changed) == [20, 29, 49, 53, 65, 97, 107, 109, 116, 117, 120, 135, 138, 147]
     # the stiff contact and the point mass moved only alike
     assert changed[65] == ([("joint_elasticity", 2), ("thermal_drift", 5)], [("backlash", 2), ("thermal_drift", 5)])
@@ -643,13 +662,7 @@ def test_stop21_counts_and_parameter_errors_in_the_readme_and_docs_are_the_bench
     assert sorted(r["seed"] for r in shoulders) == [20, 120, 135, 138, 147]
     assert all(any(f["kind"] == "backlash" and f["joint"] == 1 for f in r["named"]) for r in shoulders)
     # payload: right link 8 of 8, mass within 5 % on 6 (17 and 29 not)
-    within = {}
-    for r in rows:
-        for e in r["effects"]:
-            if e["kind"] == "payload_change":
-                f = [f for f in r["named"] if f["kind"] == "payload_change" and f["joint"] == e["joints"][0]]
-                assert f, r["seed"]
-                within[r["seed"]] = abs(f[0]["effect"]["mass"] - e["mass"]) / e["mass"] < 0.05
+    within = _payload_within_5(rows)
     assert sorted(s for s, ok in within.items() if not ok) == [17, 29] and len(within) == 8
     err = stop21["all"][1]["param_errors"]
     want = [("payload_change", "mass", 6, 2.6, 73), ("backlash", "width", 10, 23.8, 74),
@@ -704,13 +717,8 @@ def test_stop22_rates_per_set_and_totals_in_the_readme_and_docs_are_the_benchmar
 def test_stop22_changes_only_these_cases_on_the_same_recordings(stop22, stop21):
     """The same recordings, the last stop's code against this release: only false names go, and only beside a
     compliance (each case was diagnosed again without the deflection ceiling and gave the last stop's names)."""
+    changed = _changed_names(stop21, stop22)
     a = {r["seed"]: r for k in ACC_SETS for r in stop21[k][0]}
-    b = {r["seed"]: r for k in ACC_SETS for r in stop22[k][0]}
-    assert [r["effects"] for r in a.values()] == [r["effects"] for r in b.values()]        # the same draws
-
-    def names(r):
-        return sorted((f["kind"], f["joint"]) for f in r["named"])
-    changed = {s: (names(a[s]), names(b[s])) for s in a if names(a[s]) != names(b[s])}
     assert sorted(changed) == [49, 85, 100, 103, 109, 120, 135, 136]
     for seed, (old, new) in changed.items():
         truth = {(e["kind"], e["joints"][0]) for e in a[seed]["effects"]}
@@ -750,13 +758,7 @@ def test_stop22_counts_and_parameter_errors_in_the_readme_are_the_benchmarks(sto
     rows = [r for k in ACC_SETS for r in stop22[k][0]]
     assert _count(stop22, "backlash") == (29, 31) and _count(stop22, "joint_elasticity") == (14, 32)
     assert _count(stop22, "cogging") == (24, 26) and _count(stop22, "coupling") == (19, 29)
-    within = {}
-    for r in rows:
-        for e in r["effects"]:
-            if e["kind"] == "payload_change":
-                f = [f for f in r["named"] if f["kind"] == "payload_change" and f["joint"] == e["joints"][0]]
-                assert f, r["seed"]
-                within[r["seed"]] = abs(f[0]["effect"]["mass"] - e["mass"]) / e["mass"] < 0.05
+    within = _payload_within_5(rows)
     assert sorted(s for s, ok in within.items() if not ok) == [17, 29] and len(within) == 8
     case29 = next(r for r in rows if r["seed"] == 29)
     m29 = next(f["effect"]["mass"] for f in case29["named"] if f["kind"] == "payload_change")
