@@ -1336,7 +1336,15 @@ class BacklashRattle(Term):
     @staticmethod
     def oscillation(rd, j) -> tuple[float, float]:
         """Joint j's gear oscillation above the torque band: peak to peak (rad, joint side: 2 sqrt 2 the RMS of the
-        gear's angle above the band over the rows where it moves) and its dominant frequency (Hz, above the band)."""
+        gear's angle above the band over the rows where it moves) and its dominant frequency (Hz, above the band).
+        Made once per joint and recording (every candidate and ladder step asks again)."""
+        cache = rd.extra.setdefault("rattle_oscillation", {})
+        if j not in cache:
+            cache[j] = BacklashRattle._oscillation(rd, j)
+        return cache[j]
+
+    @staticmethod
+    def _oscillation(rd, j) -> tuple[float, float]:
         q_gear = _gear_side(rd, rd.q_motor)[:, j:j + 1]
         swing = (q_gear - rd.lowpass(q_gear))[:, 0]
         moving = rd.mask[:, j]

@@ -354,7 +354,7 @@ def own_offsets(model: IdentifiedModel, min_speed: float = 0.01, block_s: float 
     the model's structure (js2-identify leaves offsets out by cross-validation), not physics the new one adds."""
     parts, names = [], []
     base = Path(model.path).parent if model.path else Path(".")
-    for item in model.raw.get("inputs") or []:
+    for item in model.inputs:
         if item.get("role") == "validation" or not item.get("path"):
             continue
         p = Path(str(item["path"]))
@@ -363,7 +363,7 @@ def own_offsets(model: IdentifiedModel, min_speed: float = 0.01, block_s: float 
             continue
         try:
             lg = read_log(p)
-            if item.get("sha256") not in (lg.sha256,) and item.get("data_sha256") not in (lg.data_sha256,):
+            if not model.is_recording(item, lg):
                 continue
             rd = residual_data(model, lg, min_speed=min_speed)
         except (Js2Error, OSError, ValueError):

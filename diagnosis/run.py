@@ -176,11 +176,7 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
     log = join_logs(logs)
     notes = []
     library = LIBRARY
-    # the model's own recordings: the same file (sha256) or the same data written again (data_sha256: imported
-    # twice, the file's metadata differs)
-    inputs = {str(i.get(key)) for i in (mdl.raw.get("inputs") or []) for key in ("sha256", "data_sha256")
-              if i.get(key)}
-    own = [p.name for p, lg in zip(paths, logs) if inputs and (lg.sha256 in inputs or lg.data_sha256 in inputs)]
+    own = [p.name for p, lg in zip(paths, logs) if mdl.is_input(lg)]       # the model's own recordings
     if own:
         library = model_data_library(LIBRARY)
         notes.append(f"{', '.join(own)}: the model was identified from this recording (its sha256 or its data's is "

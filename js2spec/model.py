@@ -44,6 +44,22 @@ class IdentifiedModel:
         from .files import read_text
         return read_text(self.urdf_path, "identified URDF")
 
+    @property
+    def inputs(self) -> list[dict]:
+        """model.yaml's ``inputs``: the recordings the model was identified (and validated) on."""
+        return list(self.raw.get("inputs") or [])
+
+    @staticmethod
+    def is_recording(item: dict, log) -> bool:
+        """Whether ``log`` (a read js2 log) is the recording an ``inputs`` item names: the same file (``sha256``) or
+        the same data written again (``data_sha256``: imported twice, the file's metadata differs)."""
+        return bool((item.get("sha256") and item["sha256"] == log.sha256)
+                    or (item.get("data_sha256") and item["data_sha256"] == log.data_sha256))
+
+    def is_input(self, log) -> bool:
+        """Whether ``log`` is one of the model's own recordings (:meth:`is_recording` of any ``inputs`` item)."""
+        return any(self.is_recording(item, log) for item in self.inputs)
+
     def recording_mismatch(self, drives) -> tuple[str, str] | None:
         """Why a recording with these ``drives`` (``drives.yaml`` of a js2 log) cannot be compared with this model,
         or None: ``("joints", text)`` when its joints are not the model's, ``("torque_side", text)`` when it

@@ -48,13 +48,6 @@ TX40_PAYLOAD_MASS = 1.0             # kg (the TX40 carries 2 kg at most)
 TX40_PAYLOAD_COM = (0.0, 0.02, 0.05)  # m, hand (link_6) frame
 
 
-def _kuka_paths(data: Path):
-    from identification.examples.real_arms import HERE as EX
-
-    d = data / "kuka_lwr4"
-    return d, d / "kinematics" / "kuka_lwr4.urdf", EX / "kuka_lwr4" / "drives.yaml"
-
-
 def payload_torque(urdf: Path, joints: list[str], q, dq, ddq, mass: float, com, link_joint: int = -1) -> np.ndarray:
     """Joint torque (N, n) a point mass ``mass`` at ``com`` (m, frame of the link moved by ``joints[link_joint]``)
     adds along the motion (q, dq, ddq) (N, n) in drive order: RNEA(with) - RNEA(without), pinocchio."""
@@ -128,20 +121,16 @@ REAL_EFFECTS = {
 def effect_log(data: Path, out: Path, kind: str, model: Path, which: int = 2, decimate: int = 1) -> Path:
     """kuka_<which> with REAL_EFFECTS[kind]'s torque added on its joint (step 8), optionally decimated (every
     ``decimate``-th sample), written with js2-import's writer."""
-    from identification import importer as im
+    from identification.examples.real_arms import load_kuka, write_kuka
     from js2spec.model import load_model
 
-    d, urdf, drives = _kuka_paths(data)
-    raw = np.load(d / "data" / f"measurements_{which}.npz")
-    rec = im.load_npz(d / "data" / f"measurements_{which}.npz")
+    rec, raw = load_kuka(data, which)
     j, fn, _ = REAL_EFFECTS[kind]
     fc = np.asarray(load_model(model).friction_coulomb, float)
     added = np.zeros_like(rec.torque)
     added[:, j] = fn(raw["positions"], raw["velocities"], rec.torque, fc)
     rec.torque = rec.torque + added
-    if decimate > 1:
-        rec.t, rec.position, rec.torque = rec.t[::decimate], rec.position[::decimate], rec.torque[::decimate]
-    return im.write_log(rec, urdf, drives, out, robot="kuka_lwr4", rate=200.0 / decimate, positions_side="joint")
+    return write_kuka(rec, data, out, decimate=decimate)
 
 
 def tx40_payload_log(data: Path, out: Path, mass: float = TX40_PAYLOAD_MASS, com=TX40_PAYLOAD_COM,
@@ -149,13 +138,11 @@ def tx40_payload_log(data: Path, out: Path, mass: float = TX40_PAYLOAD_MASS, com
     """The TX40 recording with a point mass's torque added (step 7), written as js2-import writes it."""
     from scipy.signal import butter, filtfilt
 
-    from identification import importer as im
-    from identification.examples.real_arms import HERE as EX
+    from identification.examples.real_arms import load_tx40, tx40_paths, write_tx40
     from js2spec.drives import load_drives
 
-    d = data / "staubli_tx40"
-    urdf, drives_path = d / "kinematics" / "tx40_mdh_modified.urdf", EX / "staubli_tx40" / "drives.yaml"
-    rec = im.load_csvs(d / "data" / "pos_read_data.csv", d / "data" / "curr_data.csv", rate=5000.0)
+    _, urdf, drives_path = tx40_paths(data)
+    rec = load_tx40(data)
     drives = load_drives(drives_path)
     K = np.asarray(drives.gear_ratio_matrix, float)
     q = rec.position @ K.T + np.asarray(drives.joint_offset, float)
@@ -165,32 +152,23 @@ def tx40_payload_log(data: Path, out: Path, mass: float = TX40_PAYLOAD_MASS, com
     ddq = np.gradient(filtfilt(b, a, dq, axis=0), dt, axis=0)
     tau_joint = payload_torque(urdf, list(drives.joints), q, dq, ddq, mass, com, link_joint)
     rec.torque = rec.torque + tau_joint @ K          # motor side: K^T tau_joint, row-wise
-    return im.write_log(rec, urdf, drives_path, out, robot="staubli_tx40", rate=5000.0,
-                        trials=[("excitation", 0.0, 24750 / 5000), ("validation", 29250 / 5000, 45000 / 5000)])
+    return write_tx40(rec, data, out)
 
 
 def payload_log(data: Path, out: Path, which: int = 2, mass: float = PAYLOAD_MASS, com=PAYLOAD_COM,
                 decimate: int = 1, trials=None, part: tuple[float, float] | None = None) -> Path:
     """kuka_<which> with the payload's torque added (see module docstring), optionally decimated (every
-    ``decimate``-th sample, so 200 Hz -> 100 Hz with 2) or cut to ``part`` (shares of its length), written with
-    js2-import's writer."""
-    from identification import importer as im
+    ``decimate``-th sample, so 200 Hz -> 100 Hz with 2) or cut to ``part`` (shares of its length, after the
+    decimation), written with js2-import's writer."""
+    from identification.examples.real_arms import kuka_paths, load_kuka, write_kuka
     from js2spec.drives import load_drives
 
-    d, urdf, drives = _kuka_paths(data)
-    raw = np.load(d / "data" / f"measurements_{which}.npz")
-    rec = im.load_npz(d / "data" / f"measurements_{which}.npz")
-    joints = list(load_drives(drives).joints)
+    _, urdf, drives = kuka_paths(data)
+    rec, raw = load_kuka(data, which)
     if mass:
-        rec.torque = rec.torque + payload_torque(urdf, joints, raw["positions"], raw["velocities"],
-                                                 raw["accelerations"], mass, com)
-    if decimate > 1:
-        rec.t, rec.position, rec.torque = rec.t[::decimate], rec.position[::decimate], rec.torque[::decimate]
-    if part is not None:            # a share (from, to) of the recording: one file of a session recorded in parts
-        a, b = (int(round(x * len(rec.t))) for x in part)
-        rec.t, rec.position, rec.torque = rec.t[a:b], rec.position[a:b], rec.torque[a:b]
-    return im.write_log(rec, urdf, drives, out, robot="kuka_lwr4", rate=200.0 / decimate, positions_side="joint",
-                        trials=trials)
+        rec.torque = rec.torque + payload_torque(urdf, list(load_drives(drives).joints), raw["positions"],
+                                                 raw["velocities"], raw["accelerations"], mass, com)
+    return write_kuka(rec, data, out, decimate=decimate, trials=trials, part=part)
 
 
 def diagnose_cli(model: Path, log: Path, out: Path) -> dict:

@@ -1,25 +1,9 @@
 """Fixtures shared across test modules."""
 from __future__ import annotations
 
-import importlib.util
-
 import pytest
 
-from fixtures_id_sim import REAL, REPO
-
-
-def prove_diagnosis_real():
-    """scripts/prove_diagnosis_real.py as a module (one instance per session)."""
-    import sys
-
-    mod = sys.modules.get("prove_diagnosis_real")
-    if mod is None:
-        spec = importlib.util.spec_from_file_location("prove_diagnosis_real",
-                                                      REPO / "scripts" / "prove_diagnosis_real.py")
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
-        sys.modules["prove_diagnosis_real"] = mod
-    return mod
+from fixtures_id_sim import REAL, prove_diagnosis_real
 
 
 @pytest.fixture(scope="session")

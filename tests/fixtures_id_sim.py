@@ -25,6 +25,22 @@ REPO = Path(__file__).resolve().parents[1]
 REAL = REPO.parent / "shared" / "data" / "real"
 
 
+def prove_diagnosis_real():
+    """scripts/prove_diagnosis_real.py as a module, one instance per test session (the modules that diagnose the
+    real recordings share its helpers)."""
+    import importlib.util
+    import sys
+
+    mod = sys.modules.get("prove_diagnosis_real")
+    if mod is None:
+        spec = importlib.util.spec_from_file_location("prove_diagnosis_real",
+                                                      REPO / "scripts" / "prove_diagnosis_real.py")
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        sys.modules["prove_diagnosis_real"] = mod
+    return mod
+
+
 @functools.lru_cache(maxsize=None)
 def sim_session(trials: tuple = ("static", "velocity", "acceleration", "validation"), seed: int = 0,
                 effects: tuple = ()) -> Path:

@@ -236,9 +236,10 @@ def test_one_limit_cycle_is_one_play():
                   0.1 * np.sin(0.3 * t) + 0.003 * np.sin(2 * np.pi * 37.0 * t)], axis=1)   # its own oscillation
     rd = SimpleNamespace(K=np.eye(n), q_motor=q, fs=fs, mask=np.ones((len(t), n), dtype=bool),
                          lowpass=lambda x: sosfiltfilt(sos, x, axis=0), joints=["j1", "j2", "j3"],
-                         signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=7.0)))
+                         signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=7.0)), extra={})
     width, f = BacklashRattle.oscillation(rd, 0)
     assert abs(f - 25.6) < 0.5 and 0.007 < width < 0.009           # 2 x 0.004 peak to peak
+    assert BacklashRattle.oscillation(rd, 0) == (width, f) and set(rd.extra["rattle_oscillation"]) == {0}   # made once
 
     def scored(j):
         fit = Fitted(kind="backlash", joint=j, hyper=None, coef=np.array([0.9]), coef_std=np.array([0.01]),

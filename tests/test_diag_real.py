@@ -4,20 +4,17 @@ torque sensors, K = I, a gear-1 arm, no trial labels), with a model from ``js2-i
 (scripts/prove_diagnosis_real.py) and the three-part honest split. Skipped when the data folder is absent."""
 from __future__ import annotations
 
-import importlib.util
 import json
 
 import numpy as np
 import pytest
 
-from fixtures_id_sim import REAL, REPO
+from fixtures_id_sim import REAL, prove_diagnosis_real
 
 pytestmark = pytest.mark.skipif(not (REAL / "kuka_lwr4").is_dir(),
                                 reason=f"real-arm recordings not found at {REAL} (CI has ../shared/data/real)")
 
-_spec = importlib.util.spec_from_file_location("prove_diagnosis_real", REPO / "scripts" / "prove_diagnosis_real.py")
-prove = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(prove)
+prove = prove_diagnosis_real()
 
 
 README_MASS = {2: 1.849, 1: 1.903, 3: 1.882}     # kg found for the 2 kg payload (README, docs/diagnosis.md; 2 %)
@@ -175,17 +172,13 @@ def test_a_short_piece_of_a_real_recording_names_nothing(tx40):
     the reason."""
     from diagnosis.run import MIN_NAMING_SPAN_S
 
-    from identification import importer as im
-    from identification.examples.real_arms import HERE as EX
+    from identification.examples.real_arms import TX40_RATE, load_tx40, write_tx40
 
     work, _ = tx40
-    d_real = REAL / "staubli_tx40"
-    rec = im.load_csvs(d_real / "data" / "pos_read_data.csv", d_real / "data" / "curr_data.csv", rate=5000.0)
+    rec = load_tx40(REAL)
     keep = 12726                  # what a cut at 1 MB recovers: 2.545 s of the excitation (the same samples here,
     rec.t, rec.position, rec.torque = rec.t[:keep], rec.position[:keep], rec.torque[:keep]   # cut by samples)
-    piece = im.write_log(rec, d_real / "kinematics" / "tx40_mdh_modified.urdf", EX / "staubli_tx40" / "drives.yaml",
-                         work / "piece.mcap", robot="staubli_tx40", rate=5000.0,
-                         trials=[("excitation", 0.0, keep / 5000)])
+    piece = write_tx40(rec, REAL, work / "piece.mcap", trials=[("excitation", 0.0, keep / TX40_RATE)])
     d = prove.diagnose_cli(work / "model", piece, work / "diag_piece")
     assert d["findings"] == [] and d["verdict"].startswith(("unexplained", "none")), d["verdict"]
     assert any(n.startswith("nothing named: the recording spans 2.5") for n in d["notes"])
@@ -198,6 +191,7 @@ def test_an_effect_in_a_recording_under_5_s_is_reported_not_named(kuka, tmp_path
     with the reason."""
     from diagnosis.run import MIN_NAMING_SPAN_S
     from identification import importer as im
+    from identification.examples.real_arms import write_kuka
     from js2spec.log import read_log
 
     full = read_log(prove.effect_log(REAL, tmp_path / "full.mcap", "torque_offset", kuka["model"]))
@@ -205,9 +199,7 @@ def test_an_effect_in_a_recording_under_5_s_is_reported_not_named(kuka, tmp_path
     keep = fb.t - fb.t[0] < 4.0
     rec = im.Recording(t=fb.t[keep], position=fb.motor_position[keep], torque=fb.torque[keep], current=None,
                        source="kuka_2 + offset, first 4 s")
-    _, urdf, drives = prove._kuka_paths(REAL)
-    piece = im.write_log(rec, urdf, drives, tmp_path / "piece.mcap", robot="kuka_lwr4", rate=200.0,
-                         positions_side="joint")
+    piece = write_kuka(rec, REAL, tmp_path / "piece.mcap")
     d = prove.diagnose_cli(kuka["model"], piece, tmp_path / "d")
     assert d["findings"] == [], d["verdict"]
     assert any(n.startswith("nothing named: the recording spans 4") for n in d["notes"])

@@ -4,20 +4,17 @@ by RNEA), replayed through the simulator with the identified model, then with th
 Skipped when the data folder is absent. The figures are those of docs/diagnosis.md ("Replay")."""
 from __future__ import annotations
 
-import importlib.util
 import json
 
 import numpy as np
 import pytest
 
-from fixtures_id_sim import REAL, REPO
+from fixtures_id_sim import REAL, prove_diagnosis_real
 
 pytestmark = pytest.mark.skipif(not (REAL / "kuka_lwr4").is_dir(),
                                 reason=f"real-arm recordings not found at {REAL} (CI has ../shared/data/real)")
 
-_spec = importlib.util.spec_from_file_location("prove_diagnosis_real", REPO / "scripts" / "prove_diagnosis_real.py")
-prove = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(prove)
+prove = prove_diagnosis_real()
 
 
 @pytest.fixture(scope="module")

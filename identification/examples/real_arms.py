@@ -28,26 +28,76 @@ DEFAULT_DATA = HERE.parents[2] / "shared" / "data" / "real"
 FLOBAROID_CAD_FRICTION_RMS = [0.36, 1.55, 0.49, 0.98, 0.63, 0.49, 0.27]
 
 
-def import_tx40(data: Path, out: Path, source_text: str | None = None) -> Path:
+TX40_RATE = 5000.0                  # Hz
+# the maintainers' split (FIGAROH): fit rows 0-24750, validation rows 29250-45000
+TX40_TRIALS = [("excitation", 0.0, 24750 / TX40_RATE), ("validation", 29250 / TX40_RATE, 45000 / TX40_RATE)]
+KUKA_RATE = 200.0                   # Hz
+
+
+def tx40_paths(data: Path) -> tuple[Path, Path, Path]:
+    """(recording folder, URDF, drives.yaml) of the TX40 under ``data``."""
+    d = data / "staubli_tx40"
+    return d, d / "kinematics" / "tx40_mdh_modified.urdf", HERE / "staubli_tx40" / "drives.yaml"
+
+
+def load_tx40(data: Path):
+    """The TX40 recording as js2-import reads it (:class:`identification.importer.Recording`, motor side)."""
     from identification import importer as im
 
-    d = data / "staubli_tx40"
-    rec = im.load_csvs(d / "data" / "pos_read_data.csv", d / "data" / "curr_data.csv", rate=5000.0)
-    return im.write_log(rec, d / "kinematics" / "tx40_mdh_modified.urdf", HERE / "staubli_tx40" / "drives.yaml",
-                        out, robot="staubli_tx40", rate=5000.0, source_text=source_text,
-                        trials=[("excitation", 0.0, 24750 / 5000), ("validation", 29250 / 5000, 45000 / 5000)])
+    d, _, _ = tx40_paths(data)
+    return im.load_csvs(d / "data" / "pos_read_data.csv", d / "data" / "curr_data.csv", rate=TX40_RATE)
+
+
+def write_tx40(rec, data: Path, out: Path, trials=TX40_TRIALS, source_text: str | None = None) -> Path:
+    """A TX40 recording (``load_tx40``'s, changed or not) written as js2-import writes it, with ``trials``
+    (default: the maintainers' split)."""
+    from identification import importer as im
+
+    _, urdf, drives = tx40_paths(data)
+    return im.write_log(rec, urdf, drives, out, robot="staubli_tx40", rate=TX40_RATE, source_text=source_text,
+                        trials=trials)
+
+
+def import_tx40(data: Path, out: Path, source_text: str | None = None) -> Path:
+    return write_tx40(load_tx40(data), data, out, source_text=source_text)
+
+
+def kuka_paths(data: Path) -> tuple[Path, Path, Path]:
+    """(recording folder, URDF, drives.yaml) of the KUKA LWR4+ under ``data``."""
+    d = data / "kuka_lwr4"
+    return d, d / "kinematics" / "kuka_lwr4.urdf", HERE / "kuka_lwr4" / "drives.yaml"
+
+
+def load_kuka(data: Path, which: int):
+    """measurements_<which> as js2-import reads it (:class:`identification.importer.Recording`, joint side) and the
+    provider's own arrays (``positions``, ``velocities``, ``accelerations``, rad, rad/s, rad/s^2)."""
+    from identification import importer as im
+
+    d, _, _ = kuka_paths(data)
+    path = d / "data" / f"measurements_{which}.npz"
+    with np.load(path) as raw:
+        provided = {k: np.asarray(raw[k], float) for k in ("positions", "velocities", "accelerations")}
+    return im.load_npz(path), provided
+
+
+def write_kuka(rec, data: Path, out: Path, decimate: int = 1, trials=None,
+               part: tuple[float, float] | None = None) -> Path:
+    """A KUKA recording written as js2-import writes it: every ``decimate``-th sample kept (2: 200 Hz -> 100 Hz),
+    then, with ``part`` (from, to), only that share of its length (one file of a session recorded in parts)."""
+    from identification import importer as im
+
+    if decimate > 1:
+        rec.t, rec.position, rec.torque = rec.t[::decimate], rec.position[::decimate], rec.torque[::decimate]
+    if part is not None:
+        a, b = (int(round(x * len(rec.t))) for x in part)
+        rec.t, rec.position, rec.torque = rec.t[a:b], rec.position[a:b], rec.torque[a:b]
+    _, urdf, drives = kuka_paths(data)
+    return im.write_log(rec, urdf, drives, out, robot="kuka_lwr4", rate=KUKA_RATE / decimate, positions_side="joint",
+                        trials=trials)
 
 
 def import_kuka(data: Path, out_dir: Path) -> list[Path]:
-    from identification import importer as im
-
-    d = data / "kuka_lwr4"
-    paths = []
-    for i in (1, 2, 3):
-        rec = im.load_npz(d / "data" / f"measurements_{i}.npz")
-        paths.append(im.write_log(rec, d / "kinematics" / "kuka_lwr4.urdf", HERE / "kuka_lwr4" / "drives.yaml",
-                                  out_dir / f"kuka_{i}.mcap", robot="kuka_lwr4", rate=200.0, positions_side="joint"))
-    return paths
+    return [write_kuka(load_kuka(data, i)[0], data, out_dir / f"kuka_{i}.mcap") for i in (1, 2, 3)]
 
 
 def tx40_published(data: Path, drives) -> dict:
