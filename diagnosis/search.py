@@ -6,7 +6,8 @@ Per candidate (term, joint):
    coefficients by weighted least squares on the *fit* rows of the motors the term can move (each motor's residual
    scaled by its baseline RMS on the fit rows, so small wrist motors count as much as the shoulder);
 2. select gain: 1 - SSE_with_term / SSE_without on the *select* rows (its motors; and over all motors, which ranks
-   terms that move different numbers of motors);
+   terms that move different numbers of motors: there a motor counts at most as much per select row as per fit
+   row, ``MismatchSearch._select_share``);
 3. report gain: the same on the *report* rows — computed for the record only, never used to rank or accept.
 Once a candidate is accepted, its coefficients are estimated again on FIT + SELECT (hyper-parameter kept).
 
@@ -136,11 +137,24 @@ class MismatchSearch:
         if st is None or st["r"] is not r:
             rw = r * w
             masks = self._row_masks(rd)
-            st = self._stats_cache[band] = {
-                "r": r, "rw": rw, "rms": _rms(r, masks["holdout_rows"]),
-                "s0": {name: np.array([float(np.sum(rw[m[:, i], i] ** 2)) for i in range(r.shape[1])])
-                       for name, m in masks.items()}}
+            s0 = {name: np.array([float(np.sum(rw[m[:, i], i] ** 2)) for i in range(r.shape[1])])
+                  for name, m in masks.items()}
+            st = self._stats_cache[band] = {"r": r, "rw": rw, "rms": _rms(r, masks["holdout_rows"]), "s0": s0,
+                                            "share": self._select_share(s0, masks)}
         return st
+
+    @staticmethod
+    def _select_share(s0: dict, masks: dict) -> np.ndarray:
+        """(n,) how much each motor's select rows count in the gain over all motors: 1, or less where the motor's
+        residual per select row is larger than per fit row (its weight, 1 / fit-rows RMS, would let it count more
+        than any other motor), so that no motor counts more than one whose select rows are like its fit rows.
+        Without the cap a motor the model predicts badly on the select trajectory swamps the sum: bench case 161,
+        motor 1's select residual 3.8x its fit level made a cogging that removes 90 % of motor 6's select residual
+        read 0.5 % over all motors, under the 1 % every term must reach."""
+        n_fit, n_sel = masks["fit_rows"].sum(axis=0), masks["select_rows"].sum(axis=0)
+        per_fit = s0["fit_rows"] / np.maximum(n_fit, 1)
+        per_sel = s0["select_rows"] / np.maximum(n_sel, 1)
+        return np.where(per_sel > per_fit, per_fit / np.where(per_sel > 0, per_sel, 1.0), 1.0)
 
     CACHE_BYTES = 2 ** 31         # weighted columns kept across ladder steps (2 GiB; beyond it they are rebuilt)
 
@@ -285,7 +299,7 @@ class MismatchSearch:
         judged = [list(motors).index(j)] if term.own_motor and j in motors else slice(None)
         return Scored(fitted=fitted, fit_gain=gain(sums(old_w, sel_fit)[judged], sums(new_w, sel_fit)[judged]),
                       select_gain=gain(st["s0"]["select_rows"][motors][judged], s1["select_rows"][judged]),
-                      select_gain_all=gain(st["s0"]["select_rows"], s_all),
+                      select_gain_all=gain(st["share"] * st["s0"]["select_rows"], st["share"] * s_all),
                       holdout_gain=gain(st["s0"]["holdout_rows"][motors][judged], s1["holdout_rows"][judged]),
                       rms_before=st["rms"].copy(), rms_after=rms_after,
                       band=band, term=term, select_gain_own=gain(s_own, s_own1),

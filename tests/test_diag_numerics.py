@@ -187,6 +187,30 @@ def test_the_prediction_is_filtered_once_like_the_torque(fs):
     assert np.allclose(acc[a:b], np.gradient(sig.dq_motor[a:b], 1 / fs, axis=0))
 
 
+def test_no_motor_counts_more_per_select_row_than_per_fit_row_in_the_gain_over_all_motors():
+    """MismatchSearch._select_share: bench case 161 (a 4-per-revolution cogging on motor 6, 250 Hz): motor 1's model
+    error per select row was 14.4x its fit-row level (the validation trajectory goes where the excitation did not),
+    so a ripple that removes 90 % of motor 6's select residual read 0.5 % over all motors and was refused (< 1 %).
+    With each motor capped at its fit rows' level it reads 2.4 % and passes; a motor whose select rows are like its
+    fit rows keeps its full weight."""
+    from diagnosis.search import MismatchSearch
+
+    n_fit, n_sel = 7000, 1300
+    ratio = np.array([14.44, 0.57, 1.45, 0.74, 1.40, 0.12])     # weighted SSE per select row / per fit row (case 161)
+    masks = {"fit_rows": np.ones((n_fit + n_sel, 6), bool), "select_rows": np.ones((n_fit + n_sel, 6), bool)}
+    masks["fit_rows"][n_fit:] = False
+    masks["select_rows"][:n_fit] = False
+    s0 = {"fit_rows": np.full(6, 1.0 * n_fit), "select_rows": ratio * n_sel}
+    share = MismatchSearch._select_share(s0, masks)
+    np.testing.assert_allclose(share, [1 / 14.44, 1, 1 / 1.45, 1, 1 / 1.40, 1])
+    s1 = s0["select_rows"].copy()
+    s1[5] *= 0.1                                                   # 90 % of motor 6's select residual removed
+    old = 1 - s1.sum() / s0["select_rows"].sum()
+    new = 1 - (share * s1).sum() / (share * s0["select_rows"]).sum()
+    assert old < 0.01 < new and abs(new - 0.024) < 0.001
+    assert np.all(MismatchSearch._select_share({"fit_rows": np.zeros(6), "select_rows": np.zeros(6)}, masks) == 1)
+
+
 def test_a_torque_offset_under_half_a_count_of_the_current_read_back_is_not_named():
     """The data's resolution is a null: a torque offset under half a count of the drive's current read-back
     (k_t I_rated / 1000, motor side) is the identified model's own bias, never a named effect; terms that do not ask
