@@ -67,7 +67,8 @@ class Scored:
         f = self.fitted
         return {"kind": f.kind, "joint": joints[f.joint] if f.joint is not None else None, "joint_index": f.joint,
                 "hyper": f.hyper, "fit_gain": self.fit_gain, "select_gain": self.select_gain,
-                "select_gain_all": self.select_gain_all, "holdout_gain": self.holdout_gain,
+                "select_gain_all": self.select_gain_all, "select_gain_capped": self.select_gain_capped,
+                "holdout_gain": self.holdout_gain,
                 "plausible": f.plausible, "why_not": f.why_not or self.rejected, "summary": f.summary,
                 "effect": f.effect, "coefficients": f.coef.tolist(), "coefficients_std": f.coef_std.tolist(),
                 "band": self.band}
@@ -329,7 +330,8 @@ class MismatchSearch:
             return f"fit gain {s.fit_gain:.1%} < {self.min_gain:.0%}"
         arm = s.select_gain_capped if np.isfinite(s.select_gain_capped) else s.select_gain_all
         if arm < self.min_gain_all:
-            return f"select gain over all motors {arm:.1%} < {self.min_gain_all:.0%}"
+            return (f"select gain over all motors {arm:.1%} < {self.min_gain_all:.0%} (no motor counting more per "
+                    "select row than per fit row)")
         floor = s.term.min_counts if s.term is not None else 0.0
         if floor > 0 and np.isfinite(s.counts) and s.counts < floor:
             return (f"its torque is {s.counts:.2f} count of the drive's current read-back (RMS, select rows; "
