@@ -13,6 +13,9 @@ from fixtures_id_sim import REAL, REPO
 pytestmark = pytest.mark.skipif(not (REAL / "staubli_tx40").is_dir() or not (REAL / "kuka_lwr4").is_dir(),
                                 reason=f"real-arm recordings not found at {REAL} (CI has ../shared/data/real)")
 README_TOL = 0.01          # the README: "pinned ... to 1 % of each figure"
+#: the simulated Js-2 rows: "pinned to 20 % of each figure" (two machines print the textbook fit's joint 4 as 17.63
+#: and 20.53 with the same code: the closed-loop simulation with stiction carries the BLAS kernels' rounding)
+README_TOL_SIMULATED = 0.20
 
 
 def _bench_module():
@@ -56,7 +59,11 @@ def test_readme_table_is_the_bench_output(results):
         for r in res["rows"]:
             printed.append((r["model"], r["joints"] + [r["overall"]]))
     assert len(rows) == len(printed), "README rows != bench rows"
-    for cells, (model, values) in zip(rows, printed):
+    arms = [res["arm"] for res in results for _ in res["rows"]]
+    for cells, (model, values), arm in zip(rows, printed, arms):
         assert re.sub(r"\*", "", cells[1]) == model
         nums = [float(c) for c in cells[2:-1] if c]
-        assert nums == pytest.approx(values, rel=README_TOL, abs=0.005), model
+        tol = README_TOL_SIMULATED if arm.startswith("Js-2") else README_TOL
+        assert nums == pytest.approx(values, rel=tol, abs=0.005), model
+    text = " ".join((REPO / "README.md").read_text().split())
+    assert "The simulated Js-2 rows are pinned to 20 % of each figure, not 1 %" in text
