@@ -895,9 +895,10 @@ def test_stop23_changes_only_these_cases_on_the_same_recordings(stop23):
                    238: ([("backlash", 3)], [("backlash", 3), ("coupling", 3), ("torque_offset", 3)])}
     ranked = changed("stop23-before", "stop23-rankcapped")
     assert set(ranked) == {17, 80, 106, 149, 161, 204, 238}
+    assert _totals(stop23["stop23-rankcapped"][0])[:2] == (146, 186)
     assert ranked[80] == ([("coupling", 4), ("payload_change", 3)], [("payload_change", 3), ("payload_change", 5)])
     section = _stop23_section()
-    assert "Case 80 loses its coupling to a false payload on link 6" in section
+    assert "case 80 loses its coupling to a false payload on link 6" in section
     assert "It names case 161's cogging and case 238's coupling, and adds three false names" in " ".join(README.split())
 
 
