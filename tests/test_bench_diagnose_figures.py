@@ -47,6 +47,24 @@ def _rel_errors(err: dict, kind: str, key: str) -> list:
     return [100 * e[key]["rel_error"] for e in err[kind] if key in e and np.isfinite(e[key]["rel_error"])]
 
 
+def _payload_error_pct(rows: list, seed: int) -> int:
+    """Case ``seed``'s named payload mass against its concealed one, in percent (rounded)."""
+    case = next(r for r in rows if r["seed"] == seed)
+    found = next(f["effect"]["mass"] for f in case["named"] if f["kind"] == "payload_change")
+    true = next(e["mass"] for e in case["effects"] if e["kind"] == "payload_change")
+    return round(100 * (found / true - 1))
+
+
+def _assert_param_errors(err: dict, want: list) -> None:
+    """Each (kind, key, median %, max %) of ``want`` is bench_diagnose's parameter error of that kind and key."""
+    import numpy as np
+
+    for kind, key, med, top in want:
+        v = _rel_errors(err, kind, key)
+        assert float(np.median(v)) == pytest.approx(med, abs=0.5 if med >= 10 else 0.06), kind
+        assert float(np.max(v)) == pytest.approx(top, abs=0.5), kind
+
+
 def _count(sets: dict, kind: str) -> tuple:
     """(named right, concealed) of ``kind`` over the four sets."""
     return (sum(sets[k][1]["confusion"][kind][kind] for k in ACC_SETS),
@@ -759,28 +777,20 @@ def test_stop22_confusion_matrix_in_the_readme_is_the_benchmarks(stop22):
 
 
 def test_stop22_counts_and_parameter_errors_in_the_readme_are_the_benchmarks(stop22):
-    import numpy as np
-
     rows = [r for k in ACC_SETS for r in stop22[k][0]]
     assert _count(stop22, "backlash") == (29, 31) and _count(stop22, "joint_elasticity") == (14, 32)
     assert _count(stop22, "cogging") == (24, 26) and _count(stop22, "coupling") == (19, 29)
     within = _payload_within_5(rows)
     assert sorted(s for s, ok in within.items() if not ok) == [17, 29] and len(within) == 8
-    case29 = next(r for r in rows if r["seed"] == 29)
-    m29 = next(f["effect"]["mass"] for f in case29["named"] if f["kind"] == "payload_change")
-    true29 = next(e["mass"] for e in case29["effects"] if e["kind"] == "payload_change")
-    assert round(100 * (m29 / true29 - 1)) == -47
+    assert _payload_error_pct(rows, 29) == -47
     readme = " ".join(STOP22_README.split())
     assert "backlash 29 of 31 times, joint elasticity 14 of 32. A payload is named on the right link 8 of 8 times, " \
            "its mass within 5 % on 6 of them." in readme
     assert "case 29 (-47 %, beside an elastic shoulder; -30 % at the last stop" in readme
     assert "reads 0.162 kg (-47 %); it read 0.213 (-30 %)" in _stop22_section()
-    err = stop22["all"][1]["param_errors"]
-    for kind, key, med, top in [("payload_change", "mass", 2.6, 73), ("backlash", "width", 23.8, 74),
-                                ("joint_elasticity", "stiffness", 8.2, 30)]:
-        v = _rel_errors(err, kind, key)
-        assert float(np.median(v)) == pytest.approx(med, abs=0.5 if med >= 10 else 0.06), kind
-        assert float(np.max(v)) == pytest.approx(top, abs=0.5), kind
+    _assert_param_errors(stop22["all"][1]["param_errors"], [("payload_change", "mass", 2.6, 73),
+                                                             ("backlash", "width", 23.8, 74),
+                                                             ("joint_elasticity", "stiffness", 8.2, 30)])
     assert "(median error 24 %, max 74 %)" in readme and "(median 8.2 %, max 30 %)" in readme
     assert "(payload mass median 2.6 %, max 73 %)" in readme
 
@@ -903,8 +913,6 @@ def test_stop23_changes_only_these_cases_on_the_same_recordings(stop23):
 
 
 def test_stop23_confusion_matrix_counts_and_parameter_errors_in_the_readme_are_the_benchmarks(stop23):
-    import numpy as np
-
     sys.path.insert(0, str(ROOT / "scripts"))
     import bench_diagnose
 
@@ -926,16 +934,10 @@ def test_stop23_confusion_matrix_counts_and_parameter_errors_in_the_readme_are_t
     within = _payload_within_5(rows)
     assert sorted(s for s, ok in within.items() if not ok) == [17, 29] and len(within) == 8
     assert "on the right link 8 of 8 times, its mass within 5 % on 6 of them" in readme
-    case29 = next(r for r in rows if r["seed"] == 29)
-    m29 = next(f["effect"]["mass"] for f in case29["named"] if f["kind"] == "payload_change")
-    true29 = next(e["mass"] for e in case29["effects"] if e["kind"] == "payload_change")
-    assert round(100 * (m29 / true29 - 1)) == -42 and "case 29 (-42 %" in readme
-    err = sets["all"][1]["param_errors"]
-    for kind, key, med, top in [("payload_change", "mass", 3.2, 73), ("backlash", "width", 23.8, 74),
-                                ("joint_elasticity", "stiffness", 7.6, 30)]:
-        v = _rel_errors(err, kind, key)
-        assert float(np.median(v)) == pytest.approx(med, abs=0.5 if med >= 10 else 0.06), kind
-        assert float(np.max(v)) == pytest.approx(top, abs=0.5), kind
+    assert _payload_error_pct(rows, 29) == -42 and "case 29 (-42 %" in readme
+    _assert_param_errors(sets["all"][1]["param_errors"], [("payload_change", "mass", 3.2, 73),
+                                                          ("backlash", "width", 23.8, 74),
+                                                          ("joint_elasticity", "stiffness", 7.6, 30)])
     assert "(median error 24 %, max 74 %)" in readme and "(median 7.6 %, max 30 %)" in readme
     assert "(payload mass median 3.2 %, max 73 %)" in readme
     oos2 = stop23["stop23"][2][1]
