@@ -73,6 +73,8 @@ class Term:
                           # its column is a filtering artefact, not a torque the motors carry)
     min_counts = 0.0      # a torque (RMS, select rows) of at least this many counts of the current read-back
     yields = False        # a reference that steps aside for a named term passing every test on its own motor
+    uses_load = False     # its columns read the transmitted load (``_load``): estimated again when it changes
+    changes_load = False  # its torque is rigid-body load the gears carry (a payload): ``_load`` adds it
     search_caches: tuple = ()   # rd.extra keys of what the term keeps for the search alone (``grid_columns(...,
                                 # keep=True)``, ``store_bytes``): MismatchSearch.fit drops them when it ends
 
@@ -568,6 +570,7 @@ class PayloadChange(Term):
     """A mass added to the link moved by joint j (any link; the hand is j = n - 1): K^T Y columns of that link's
     m, m c_x, m c_y, m c_z (eq. 1's rigid-body part is linear in them)."""
     kind, hyper_name = "payload_change", ""
+    changes_load = True
 
     def motors(self, rd, j):
         return np.arange(rd.n)
@@ -776,6 +779,15 @@ class ThermalDrift(Term):
                      f"{'winding' if copper else 'drive train'} warms", ok and not slowest, why)
 
 
+def _load(rd: ResidualData) -> np.ndarray:
+    """(N, n) N*m motor side: the transmitted rigid-body load, the model's ``tau_rigid_motor`` plus the torque of
+    the rigid-body findings the search has estimated (``rd.extra["load_change"]``, set by
+    :meth:`diagnosis.search.MismatchSearch._joint_refit` from the terms that ``changes_load``: a payload's weight
+    is load the gears carry)."""
+    extra = rd.extra.get("load_change") if getattr(rd, "extra", None) is not None else None
+    return rd.tau_rigid_motor if extra is None else rd.tau_rigid_motor + extra
+
+
 class LoadDependentFriction(Term):
     """Friction growing with the transmitted load: sgn(w_j) |(K^T tau_rigid)_j| (coefficient mu).
 
@@ -788,9 +800,11 @@ class LoadDependentFriction(Term):
     shift_lags = (0.2, 0.4, 0.6, 0.8)     # shares of the recording
     shift_margin = 0.10
 
+    uses_load = True
+
     def columns(self, rd, j, h):
         col = np.zeros((len(rd.t), rd.n, 1))
-        col[:, j, 0] = _sgn(_moving(rd, j)) * np.abs(np.nan_to_num(rd.tau_rigid_motor[:, j]))
+        col[:, j, 0] = _sgn(_moving(rd, j)) * np.abs(np.nan_to_num(_load(rd)[:, j]))
         return col
 
     def shifted_columns(self, rd, j, h, lag: float) -> np.ndarray:

@@ -206,6 +206,8 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
             return tqdm(it, desc=desc, leave=False, disable=None)   # None: terminals only
     search = MismatchSearch(library=library, kinds=opt.kinds, min_gain=opt.min_gain, max_terms=opt.max_terms,
                             progress=progress).fit(rd)
+    for s, why in search.dropped_:
+        notes.append(f"{s.fitted.kind} on {rd.joints[s.fitted.joint]} ({s.fitted.summary}): {why}")
     span = float(rd.t[-1] - rd.t[0])
     if span < MIN_NAMING_SPAN_S:
         for s in search.accepted_:

@@ -422,3 +422,118 @@ def test_a_thermal_lag_at_the_slowest_time_constant_tried_is_a_ramp_and_not_name
     _, _, ok, why = term.effect(rd, 4, (36.0, "friction_power"), np.array([0.11, 0.0, 0.0]), np.array([0.01, 1, 1]))
     assert ok and why == ""
     assert not term.effect(rd, 4, (36.0, "current_squared"), np.array([0.01, 0, 0]), np.array([0.01, 1, 1]))[2]
+
+
+def _refit_setup(N=6000, seed=3, step=(1e-3, 1e-3)):
+    """Two motors, fit / select / report rows in thirds, and three linear terms for ``MismatchSearch._joint_refit``:
+    a 'payload' on both motors (changes the load), its near twin read on another link, and a 'friction' on motor 1
+    whose column reads the load (``diagnosis.library._load``)."""
+    from diagnosis.library import Fitted, Term, _load
+    from diagnosis.search import MismatchSearch, Scored
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(N) / 500.0
+    x = np.stack([np.sin(2 * np.pi * 0.3 * t) + 0.4, np.cos(2 * np.pi * 0.7 * t)], axis=1)      # payload's torque per kg
+    twin = x + 0.002 * np.stack([np.sin(2 * np.pi * 1.1 * t), np.zeros(N)], axis=1)
+    rows = np.zeros(N, int)
+    rows[N // 3:2 * N // 3], rows[2 * N // 3:] = 1, 2
+    rd = SimpleNamespace(n=2, t=t, fs=500.0, extra={}, mask=np.ones((N, 2), bool), fit_rows=rows == 0,
+                         select_rows=rows == 1, holdout_rows=rows == 2, torque_step_motor=np.asarray(step),
+                         tau_rigid_motor=np.stack([0.5 + 0.3 * np.sin(2 * np.pi * 0.2 * t), np.zeros(N)], axis=1),
+                         lowpass=lambda X: X)
+    direction = np.sign(np.sin(2 * np.pi * 0.45 * t))
+
+    class Mass(Term):
+        kind, changes_load = "payload_change", True
+
+        def __init__(self, cols):
+            self.cols = cols
+
+        def motors(self, rd, j):
+            return np.arange(2)
+
+        def columns(self, rd, j, h):
+            return self.cols[:, :, None].copy()
+
+        def effect(self, rd, j, h, coef, std):
+            return {"kind": self.kind, "joints": [j], "mass": float(coef[0])}, f"{coef[0]:.3g} kg", True, ""
+
+    class LoadFriction(Term):
+        kind, uses_load = "load_dependent_friction", True
+
+        def motors(self, rd, j):
+            return np.array([0])
+
+        def columns(self, rd, j, h):
+            col = np.zeros((len(rd.t), 2, 1))
+            col[:, 0, 0] = direction * np.abs(_load(rd)[:, 0])
+            return col
+
+        def effect(self, rd, j, h, coef, std):
+            return {"kind": self.kind, "joints": [0], "coefficient": float(coef[0])}, "", True, ""
+
+    mass, mu = 0.42, 0.13
+    load = rd.tau_rigid_motor + mass * x
+    residual = mass * x + mu * np.stack([direction * np.abs(load[:, 0]), np.zeros(N)], axis=1)
+    residual += rng.normal(0, 2e-4, residual.shape)
+
+    def state(readings):
+        """The search as the ladder leaves it: ``readings`` (term, joint, coefficient) accepted in that order."""
+        search = MismatchSearch()
+        res = {"low": residual.copy(), "wide": residual.copy()}
+        search.accepted_, search.references_, search._order, search.dropped_ = [], [], [], []
+        search.corrections_ = {"low": np.zeros_like(residual), "wide": np.zeros_like(residual)}
+        search._masks = None
+        for term, j, c in readings:
+            f = Fitted(kind=term.kind, joint=j, hyper=None, coef=np.array([c]), coef_std=np.zeros(1), effect={},
+                       summary="", plausible=True)
+            s = Scored(fitted=f, fit_gain=0.5, select_gain=0.5, select_gain_all=0.5, holdout_gain=0.5,
+                       rms_before=np.ones(2), rms_after=np.ones(2), band="low", term=term)
+            search.accepted_.append(s)
+            search._order.append(s)
+            torque = term.columns(rd, j, None)[:, :, 0] * c
+            for band in res:
+                res[band] -= torque
+                search.corrections_[band] += torque
+        return search, res, {"low": np.ones(2), "wide": np.ones(2)}
+
+    return rd, Mass(x), Mass(twin), LoadFriction(), state, residual
+
+
+def test_findings_are_estimated_together_and_a_twin_reading_of_one_mass_is_dropped():
+    """MismatchSearch._joint_refit (bench case 17: 0.42 kg on link 4 and a load-dependent friction on joint 3 read as
+    0.27 kg on link 6, 0.11 kg on link 4 and mu 0.144 for 0.131): the ladder's split of one mass over two readings
+    and the friction that the first reading biased are estimated together; the twin whose own torque beside the
+    others is under half a count of the read-back is dropped, and the friction reads the load with the payload's
+    weight in it. The model's torque and the report's gains follow the refit."""
+    rd, mass, twin, friction, state, residual = _refit_setup()
+    search, res, weights = state([(twin, 1, 0.27), (mass, 0, 0.11), (friction, 0, 0.144)])
+    search._joint_refit(rd, res, weights)
+    kept = [(s.fitted.kind, s.fitted.joint) for s in search.accepted_]
+    assert kept == [("payload_change", 0), ("load_dependent_friction", 0)]
+    (dropped, why), = search.dropped_
+    assert dropped.fitted.joint == 1 and "count of the drive's current read-back" in why
+    m, mu = search.accepted_[0].fitted.coef[0], search.accepted_[1].fitted.coef[0]
+    assert abs(m - 0.42) < 0.005 and abs(mu - 0.13) < 0.002
+    assert search.accepted_[0].fitted.effect["mass"] == m
+    # the model now carries the refit terms' torque: what is left is the noise
+    assert np.std(res["low"]) < 3e-4 and np.allclose(search.corrections_["low"], residual - res["low"])
+    assert search.accepted_[1].holdout_gain > 0.9
+    # the friction's column read the load with the payload in it (from the turn before the last: settled to 1e-4)
+    np.testing.assert_allclose(rd.extra["load_change"], m * mass.cols, rtol=1e-4)
+
+
+def test_a_reading_with_its_own_torque_beside_the_others_is_kept():
+    """The refit drops only what the others explain: two distinct terms that both hold keep their places, with
+    their coefficients estimated together, and where the drive gives no read-back resolution the half-count floor
+    is not applied (a twin is then judged by its own gain alone)."""
+    rd, mass, twin, friction, state, _ = _refit_setup()
+    search, res, weights = state([(mass, 0, 0.5), (friction, 0, 0.05)])
+    search._joint_refit(rd, res, weights)
+    assert [s.fitted.kind for s in search.accepted_] == ["payload_change", "load_dependent_friction"]
+    assert not search.dropped_
+    assert abs(search.accepted_[0].fitted.coef[0] - 0.42) < 0.005
+    rd, mass, twin, friction, state, _ = _refit_setup(step=(0.0, 0.0))
+    search, res, weights = state([(twin, 1, 0.27), (mass, 0, 0.11), (friction, 0, 0.144)])
+    search._joint_refit(rd, res, weights)
+    assert all("count" not in why for _, why in search.dropped_)
