@@ -571,6 +571,7 @@ class PayloadChange(Term):
     m, m c_x, m c_y, m c_z (eq. 1's rigid-body part is linear in them)."""
     kind, hyper_name = "payload_change", ""
     changes_load = True
+    min_counts = 0.5      # a mass whose torque is under half a count of the read-back on every motor is no finding
 
     def motors(self, rd, j):
         return np.arange(rd.n)

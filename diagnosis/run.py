@@ -105,6 +105,7 @@ class DiagnosisResult:
                                        "ripple or a play's rattle); a finding's own gain on the motors it moves, an "
                                        "elasticity's or a backlash's on the motor of the joint it names",
             "candidates_step1": runners,
+            "dropped": [dict(s.row(self.rd.joints), why_not=why) for s, why in getattr(self.search, "dropped_", [])],
             "notes": self.notes,
         }
 

@@ -12,8 +12,8 @@ Per candidate (term, joint):
 Once a candidate is accepted, its coefficients are estimated again on FIT + SELECT (hyper-parameter kept).
 When the ladder ends, the accepted torque-band terms are estimated together (``MismatchSearch._joint_refit``,
 backfitting: a term accepted early no longer keeps what a later one explains better), and one that no longer holds
-beside the others (its own gain on the select rows, or its own torque under half a count of the read-back) is
-dropped.
+beside the others (its own gain on the select rows, or its own torque under the floor it asks for,
+``Term.min_counts``) is dropped.
 
 The ladder: candidates are ranked by select gain over all motors; the search walks down the ranking and accepts the
 first that passes every test (plausible parameters; fit and select gain on its own motors >= ``min_gain`` -- for a
@@ -441,8 +441,6 @@ class MismatchSearch:
         return (term is not None and term.band == "low" and not term.above_band
                 and type(term).columns_low is Term.columns_low)
 
-    MIN_COUNTS_BESIDE = 0.5     # counts of the current read-back a finding's own torque beside the others must reach
-
     def _joint_refit(self, rd: ResidualData, res: dict, weights: dict) -> None:
         """Backfitting after the ladder: the accepted torque-band terms (hyper-parameters kept) estimated together,
         not each on what the ones before it left.
@@ -452,8 +450,10 @@ class MismatchSearch:
         the payload read on link 6 first (0.27 kg, its centre 6 cm out, standing in for the friction's load-shaped
         torque), then a second 0.11 kg on link 4 to mend it: -73 % on the right link. Here, on the fit rows, every
         accepted term's coefficients are fitted together; a term that no longer cuts its own motors' select residual
-        by ``min_gain`` (or all motors' by ``min_gain_all``) beside the others is dropped, the weakest first, and the
-        rest fitted again, until each holds; the last term is never dropped (the ladder accepted it on this
+        by ``min_gain`` (or all motors' by ``min_gain_all``) beside the others, or whose own torque beside them falls
+        under the floor it asks for (``Term.min_counts``, counts of the drive's current read-back: 0.33 count for
+        case 17's reading on link 6, 14 for the one on link 4) is dropped, the weakest first, and the rest fitted
+        again, until each holds; the last term is never dropped (the ladder accepted it on this
         residual). The survivors' coefficients are then estimated on FIT + SELECT, as the ladder does. Nothing
         changes when a refitted term's parameters are implausible. The report rows stay unseen: the gains the
         report prints are each survivor's on what the survivors before it leave."""
@@ -547,11 +547,11 @@ class MismatchSearch:
                 mot = judged(order[k])
                 own = 1 - with_all[mot].sum() / max(without[mot].sum(), 1e-300)
                 every = 1 - (share * with_all).sum() / max((share * without).sum(), 1e-300)
-                counts = np.inf
-                if pred is not None:                # its own torque beside the others, in counts of the read-back
+                counts, floor = np.inf, order[k].term.min_counts
+                if pred is not None and floor > 0:  # its own torque beside the others, in counts of the read-back
                     diff = (pred - A[:, :, ix_r] @ coef_r) / np.where(w > 0, w, 1.0)[None, :]
                     counts = float(np.nanmax(_rms(diff, masks["select_rows"]) / step))
-                weak = own < self.min_gain or every < self.min_gain_all or counts < self.MIN_COUNTS_BESIDE
+                weak = own < self.min_gain or every < self.min_gain_all or counts < floor
                 if weak and (worst is None or own < worst[1]):
                     worst = (k, own, every, counts)
             if worst is None:
@@ -587,8 +587,8 @@ class MismatchSearch:
                      if own < self.min_gain else "",
                      f"cuts {every:.1%} over all motors (< {self.min_gain_all:.0%})" if every < self.min_gain_all else "",
                      f"its own torque is {counts:.2f} count of the drive's current read-back at most (RMS, select rows; "
-                     f"< {self.MIN_COUNTS_BESIDE:g}: within the model's own precision)"
-                     if counts < self.MIN_COUNTS_BESIDE else ""]
+                     f"< {s.term.min_counts:g}: within the model's own precision)"
+                     if counts < s.term.min_counts else ""]
             why = ("dropped after the search: with the other findings fitted together, "
                    + "; ".join(x for x in short if x))
             (self.references_ if s.term.reference else self.accepted_).remove(s)

@@ -947,3 +947,27 @@ def test_stop23_confusion_matrix_counts_and_parameter_errors_in_the_readme_are_t
         assert (row[kind], sum(row.values())) == (right, total), kind
     assert ("backlash 10 of 11, cogging 8 of 11, joint elasticity 7 of 11 (2 read as a play), coupling 3 of 4, thermal "
             "drift 3 of 3") in _stop23_section()
+
+
+def test_a_rerun_takes_the_visibility_only_from_a_row_made_from_the_same_recording(tmp_path):
+    """bench_diagnose --visibility-from DIR: a case's visibility (the exact effect replayed) is taken from DIR's row
+    only when that row is of the same draw and was written after the recording; else it is computed again."""
+    import os
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_diagnose
+
+    case = {"seed": 7, "effects": [{"kind": "stribeck", "joints": [1]}]}
+    rec = tmp_path / "case_007.mcap"
+    rec.write_bytes(b"recording")
+    old = tmp_path / "old"
+    old.mkdir()
+    row = old / "case_007.json"
+    row.write_text(json.dumps({"case": case, "visibility": [0.4]}))
+    os.utime(rec, (1_000, 1_000))
+    assert bench_diagnose._kept_visibility(case, rec, old) == [0.4]
+    assert bench_diagnose._kept_visibility(case, rec, None) is None
+    other = dict(case, effects=[{"kind": "cogging", "joints": [1]}])                   # another draw, same seed
+    assert bench_diagnose._kept_visibility(other, rec, old) is None
+    os.utime(row, (500, 500))                                                          # written before the recording
+    assert bench_diagnose._kept_visibility(case, rec, old) is None

@@ -444,7 +444,7 @@ def _refit_setup(N=6000, seed=3, step=(1e-3, 1e-3)):
     direction = np.sign(np.sin(2 * np.pi * 0.45 * t))
 
     class Mass(Term):
-        kind, changes_load = "payload_change", True
+        kind, changes_load, min_counts = "payload_change", True, 0.5
 
         def __init__(self, cols):
             self.cols = cols
