@@ -1,25 +1,22 @@
 """Models and recordings for the diagnosis tests: a model identified from a clean simulated session, and simulator
-recordings (excitation + validation trials) with hidden effects. Built once per test process."""
-import atexit
+recordings (excitation + validation trials) with hidden effects. Built once per test run (``shared_data``)."""
 import functools
 import json
-import shutil
-import tempfile
 from pathlib import Path
 
 from fixtures_id_sim import sim_session
-
-_TMP = Path(tempfile.mkdtemp(prefix="js2_diag_tests_"))
-atexit.register(shutil.rmtree, _TMP, ignore_errors=True)
+from shared_data import build_once, folder, key
 
 
 @functools.lru_cache(maxsize=None)
 def clean_model() -> Path:
     from identification.cli.identify import main as identify_main
 
-    out = _TMP / "model"
-    rc = identify_main([str(sim_session()), "-o", str(out), "--no-report", "-q"])
-    assert rc == 0 and (out / "model.yaml").is_file()
+    out = folder("diag_tests") / "model"
+    with build_once(out) as build:
+        if build:
+            rc = identify_main([str(sim_session()), "-o", str(out), "--no-report", "-q"])
+            assert rc == 0 and (out / "model.yaml").is_file()
     return out
 
 
@@ -31,10 +28,12 @@ def recording(effects_json: str) -> Path:
     from js2io.session import run_trials
     from js2spec.robot import load_robot
 
-    robot = load_robot("js2")
-    path = _TMP / f"rec_{abs(hash(effects_json))}.mcap"
-    plant = Plant(robot, seed=5, effects=json.loads(effects_json))
-    with DirectDriveGroup(robot, plant=plant, seed=5) as group:
-        res = run_trials(group, robot, ["excitation", "validation"], path)
-    assert not res.aborted, res.reason
+    path = folder("diag_tests") / f"rec_{key(effects_json)}.mcap"
+    with build_once(path) as build:
+        if build:
+            robot = load_robot("js2")
+            plant = Plant(robot, seed=5, effects=json.loads(effects_json))
+            with DirectDriveGroup(robot, plant=plant, seed=5) as group:
+                res = run_trials(group, robot, ["excitation", "validation"], path)
+            assert not res.aborted, res.reason
     return path

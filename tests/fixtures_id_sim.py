@@ -2,24 +2,20 @@
 
 * :func:`sim_session` — the paper's trials through the real trial code (``js2io.session.run_trials``) on the simulated
   drives without CAN (``hil_sim.direct.DirectDriveGroup``): one trial implementation for acquisition and tests.
-  Generated once per test process (cached in a temporary folder).
+  Generated once per test run (``shared_data``: one folder, shared by pytest-xdist's workers).
 * :func:`synthetic_log` — a small log written straight through ``LogWriter`` from eq. 1 with known parameters
   (regressor x parameters + noise): no simulator, for the error-path and end-to-end tests that need a log quickly.
 """
 from __future__ import annotations
 
-import atexit
 import functools
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from js2spec.log import LogWriter
+from shared_data import build_once, folder, key
 
-_TMP = Path(tempfile.mkdtemp(prefix="js2_id_tests_"))
-atexit.register(shutil.rmtree, _TMP, ignore_errors=True)
 
 REPO = Path(__file__).resolve().parents[1]
 REAL = REPO.parent / "shared" / "data" / "real"
@@ -50,13 +46,15 @@ def sim_session(trials: tuple = ("static", "velocity", "acceleration", "validati
     from js2io.session import run_trials
     from js2spec.robot import load_robot
 
-    robot = load_robot("js2")
-    path = _TMP / f"sim_{'_'.join(trials)}_{seed}_{len(effects)}.mcap"
-    plant = Plant(robot, seed=seed, effects=[{k: (list(v) if isinstance(v, tuple) else v) for k, v in dict(e).items()}
-                                            for e in effects]) if effects else None
-    with DirectDriveGroup(robot, plant=plant, seed=seed) as group:
-        res = run_trials(group, robot, list(trials), path)
-    assert not res.aborted, res.reason
+    path = folder("id_tests") / f"sim_{'_'.join(trials)}_{seed}_{key(trials, seed, effects)}.mcap"
+    with build_once(path) as build:
+        if build:
+            robot = load_robot("js2")
+            plant = Plant(robot, seed=seed, effects=[{k: (list(v) if isinstance(v, tuple) else v)
+                                                      for k, v in dict(e).items()} for e in effects]) if effects else None
+            with DirectDriveGroup(robot, plant=plant, seed=seed) as group:
+                res = run_trials(group, robot, list(trials), path)
+            assert not res.aborted, res.reason
     return path
 
 
