@@ -790,7 +790,8 @@ def _load(rd: ResidualData) -> np.ndarray:
 
 
 class LoadDependentFriction(Term):
-    """Friction growing with the transmitted load: sgn(w_j) |(K^T tau_rigid)_j| (coefficient mu).
+    """Friction growing with the transmitted load: sgn(w_j) |(K^T tau_rigid)_j| (coefficient mu); the load includes
+    the torque of a payload found beside it once the search estimates the findings together (``_load``).
 
     Besides the refit null (``extends``), a null the data give: the same column with the load shifted in time
     (``shifted_columns``, circular shifts by fifths of the recording) keeps the column's statistics and its sign
@@ -800,7 +801,6 @@ class LoadDependentFriction(Term):
     kind, extends = "load_dependent_friction", ("friction_refit",)
     shift_lags = (0.2, 0.4, 0.6, 0.8)     # shares of the recording
     shift_margin = 0.10
-
     uses_load = True
 
     def columns(self, rd, j, h):
@@ -811,7 +811,7 @@ class LoadDependentFriction(Term):
     def shifted_columns(self, rd, j, h, lag: float) -> np.ndarray:
         """The column with the load circularly shifted by ``lag`` x the recording's length (the null)."""
         col = np.zeros((len(rd.t), rd.n, 1))
-        load = np.abs(np.nan_to_num(rd.tau_rigid_motor[:, j]))
+        load = np.abs(np.nan_to_num(_load(rd)[:, j]))
         col[:, j, 0] = _sgn(_moving(rd, j)) * np.roll(load, int(round(lag * len(load))))
         return col
 
