@@ -223,7 +223,8 @@ def test_an_effect_added_to_a_real_recording_is_named_on_its_joint(kuka, tmp_pat
     assert (kind, j) in named, d["verdict"]
     f = next(f for f in d["findings"] if f["kind"] == kind)
     if kind == "asymmetric_friction":
-        assert f["effect"]["negative_scale"] == pytest.approx(1.41, abs=0.03)
+        # 1.41 until the findings were estimated together (stop 24): the refit beside it had kept part of it
+        assert f["effect"]["negative_scale"] == pytest.approx(1.56, abs=0.03)
     elif kind == "stribeck":
         assert f["effect"]["velocity"] == pytest.approx(0.15, rel=0.1)
     elif kind == "cogging":
