@@ -862,20 +862,18 @@ def test_stop23_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(stop23):
     b_sets, b_oos, b_oos2 = stop23["stop23-before"]
     assert _totals(b_sets) == (147, 186, 20, 21, 40)
     assert _rates(b_oos[1])[:2] == (32, 47) and _rates(b_oos2[1]) == (30, 40, 29, 33, 7, 7, 6)
-    section = _stop23_section()
-    for line in ("| 0-71 | **69 of 83 (83 %)** | 64 of 68 | 11 of 11 | 10 | 69, 11 of 11, 10 |",
+    _assert_all_in(_stop23_section(), (
+                 "| 0-71 | **69 of 83 (83 %)** | 64 of 68 | 11 of 11 | 10 | 69, 11 of 11, 10 |",
                  "| 72-95 | 25 of 30 (83 %) | 24 of 25 | 3 of 3 | 3 | 25, 3 of 3, 3 |",
                  "| 96-135 (hard kinds) | **34 of 46 (74 %)** | 32 of 37 | 3 of 4 | 19 | 34, 3 of 4, 19 |",
                  "| 136-159 | **19 of 27 (70 %)** | 18 of 21 | 3 of 3 | 9 | 19, 3 of 3, 8 |",
                  "| all 160 | **147 of 186 (79 %)** | 138 of 151 (91 %) | **20 of 21 (95 %)** | **41** | 147, 20 of 21, 40 |",
                  "| 160-199 (drawn at stop 22) | **33 of 47 (70 %)** | 29 of 39 | 3 of 3 | 13 | 32, 3 of 3, 13 |",
-                 "| **200-239, out of sample** | **31 of 40 (78 %)** | 30 of 33 (91 %) | **7 of 7** | 8 | 30, 7 of 7, 6 |"):
-        assert line in section, line
+                 "| **200-239, out of sample** | **31 of 40 (78 %)** | 30 of 33 (91 %) | **7 of 7** | 8 | 30, 7 of 7, 6 |"))
     readme = " ".join(STOP23_README.split())
     assert ("**147 of 186 concealed effects (79 %, goal 90 %)** and nothing on **20 of 21 clean cases (95 %, goal "
             "95 %)**. The stop-22 code on the same recordings names the same 147 and the same 20") in readme
-    assert ("cases 0-71 **69 of 83 (83 %)**, clean 11 of 11; 72-95 25 of 30; the hard kinds 96-135 **34 of 46 (74 %)**, "
-            "clean 3 of 4; 136-159 **19 of 27 (70 %)**") in readme
+    assert SETS_0_159 in readme
     assert ("**31 of 40 (78 %)**, 30 of 33 visible, **clean 7 of 7**, 8 false names (the stop-22 code: 30 of 40, 6 "
             "false names)") in readme
     assert "**33 of 47 (70 %)**, clean 3 of 3 (32 before)" in readme
@@ -916,27 +914,45 @@ def test_stop23_changes_only_these_cases_on_the_same_recordings(stop23):
     assert "It names case 161's cogging and case 238's coupling, and adds three false names" in " ".join(STOP23_README.split())
 
 
-def test_stop23_confusion_matrix_counts_and_parameter_errors_in_the_readme_are_the_benchmarks(stop23):
+def _assert_all_in(text: str, lines) -> None:
+    for line in lines:
+        assert line in text, line
+
+
+SETS_0_159 = ("cases 0-71 **69 of 83 (83 %)**, clean 11 of 11; 72-95 25 of 30; the hard kinds 96-135 **34 of 46 "
+              "(74 %)**, clean 3 of 4; 136-159 **19 of 27 (70 %)**")     # the stop-23 and stop-24 summaries alike
+
+
+def _assert_summary_counts(sets: dict, text: str, false_payloads: int, payload_misses: list) -> str:
+    """The stop-23 and stop-24 summaries (``text``, same recordings): the confusion matrix over cases 0-159, the
+    false names (all but the payloads' alike), the counts by kind, and the cases whose payload mass is not within
+    5 %. Returns ``text`` on one line."""
     sys.path.insert(0, str(ROOT / "scripts"))
     import bench_diagnose
 
-    sets = stop23["stop23"][0]
     rows = [r for k in ACC_SETS for r in sets[k][0]]
     s = bench_diagnose.score(rows)
     for kind, row in s["confusion"].items():
         line = _confusion_line("none (21 clean cases)" if kind == "none" else kind, row)
-        assert line in STOP23_README, line
+        assert line in text, line
     assert {k: v for k, v in s["false_names"].items() if v} == {
-        "backlash": 19, "torque_offset": 12, "payload_change": 6, "joint_elasticity": 2, "thermal_drift": 1,
-        "coupling": 1}
-    readme = " ".join(STOP23_README.split())
-    assert ("(false names, 41): backlash 19, torque offset 12, payload 6, elasticity 2, thermal drift 1, coupling 1"
-            ) in readme
+        "backlash": 19, "torque_offset": 12, "payload_change": false_payloads, "joint_elasticity": 2,
+        "thermal_drift": 1, "coupling": 1}
+    flat = " ".join(text.split())
+    assert (f"(false names, {35 + false_payloads}): backlash 19, torque offset 12, payload {false_payloads}, "
+            "elasticity 2, thermal drift 1, coupling 1") in flat
     assert _count(sets, "backlash") == (29, 31) and _count(sets, "joint_elasticity") == (12, 32)
     assert _count(sets, "cogging") == (24, 26) and _count(sets, "coupling") == (19, 29)
-    assert "Backlash named 29 of 31 times, joint elasticity 12 of 32, cogging 24 of 26, coupling 19 of 29." in readme
+    assert "Backlash named 29 of 31 times, joint elasticity 12 of 32, cogging 24 of 26, coupling 19 of 29." in flat
     within = _payload_within_5(rows)
-    assert sorted(s for s, ok in within.items() if not ok) == [17, 29] and len(within) == 8
+    assert sorted(k for k, ok in within.items() if not ok) == payload_misses and len(within) == 8
+    return flat
+
+
+def test_stop23_confusion_matrix_counts_and_parameter_errors_in_the_readme_are_the_benchmarks(stop23):
+    sets = stop23["stop23"][0]
+    rows = [r for k in ACC_SETS for r in sets[k][0]]
+    readme = _assert_summary_counts(sets, STOP23_README, 6, [17, 29])
     assert "on the right link 8 of 8 times, its mass within 5 % on 6 of them" in readme
     assert _payload_error_pct(rows, 29) == -42 and "case 29 (-42 %" in readme
     _assert_param_errors(sets["all"][1]["param_errors"], [("payload_change", "mass", 3.2, 73),
@@ -1007,20 +1023,18 @@ def test_stop24_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(stop24):
     assert _totals(b_sets) == (147, 186, 20, 21, 41)
     assert _rates(b_oos[1])[:2] == (33, 47) and _false(b_oos[1]) == 13
     assert _rates(b_oos2[1]) == (31, 40, 30, 33, 7, 7, 8)
-    section = _stop24_section()
-    for line in ("| 0-71 | **69 of 83 (83 %)** | 64 of 68 | 11 of 11 | 8 | 69, 11 of 11, 10 |",
+    _assert_all_in(_stop24_section(), (
+                 "| 0-71 | **69 of 83 (83 %)** | 64 of 68 | 11 of 11 | 8 | 69, 11 of 11, 10 |",
                  "| 72-95 | 25 of 30 (83 %) | 24 of 25 | 3 of 3 | 3 | 25, 3 of 3, 3 |",
                  "| 96-135 (hard kinds) | **34 of 46 (74 %)** | 32 of 37 | 3 of 4 | 19 | 34, 3 of 4, 19 |",
                  "| 136-159 | **19 of 27 (70 %)** | 18 of 21 | 3 of 3 | 9 | 19, 3 of 3, 9 |",
                  "| all 160 | **147 of 186 (79 %)** | 138 of 151 (91 %) | **20 of 21 (95 %)** | **39** | 147, 20 of 21, 41 |",
                  "| 160-199 | **33 of 47 (70 %)** | 29 of 39 | 3 of 3 | 12 | 33, 3 of 3, 13 |",
-                 "| **200-239, out of sample** | **30 of 40 (75 %)** | 29 of 33 (88 %) | **7 of 7** | 8 | 31, 7 of 7, 8 |"):
-        assert line in section, line
+                 "| **200-239, out of sample** | **30 of 40 (75 %)** | 29 of 33 (88 %) | **7 of 7** | 8 | 31, 7 of 7, 8 |"))
     readme = " ".join(README.split())
     assert ("**147 of 186 concealed effects (79 %, goal 90 %)** and nothing on **20 of 21 clean cases (95 %, goal "
             "95 %)**, with **39 false names** (41 with the stop-23 code on the same recordings)") in readme
-    assert ("cases 0-71 **69 of 83 (83 %)**, clean 11 of 11; 72-95 25 of 30; the hard kinds 96-135 **34 of 46 (74 %)**, "
-            "clean 3 of 4; 136-159 **19 of 27 (70 %)**") in readme
+    assert SETS_0_159 in readme
     assert ("**30 of 40 (75 %)**, 29 of 33 visible, **clean 7 of 7**, 8 false names (the stop-23 code: 31 of 40, 8 "
             "false names). Cases 160-199: **33 of 47 (70 %)**, clean 3 of 3, 12 false names (13 before)") in readme
     assert "138 of the 151 visible effects are named" in readme
@@ -1075,21 +1089,7 @@ def test_stop24_confusion_matrix_and_parameter_errors_in_the_readme_are_the_benc
 
     sets = stop24["stop24"][0]
     rows = [r for k in ACC_SETS for r in sets[k][0]]
-    s = bench_diagnose.score(rows)
-    for kind, row in s["confusion"].items():
-        line = _confusion_line("none (21 clean cases)" if kind == "none" else kind, row)
-        assert line in README, line
-    assert {k: v for k, v in s["false_names"].items() if v} == {
-        "backlash": 19, "torque_offset": 12, "payload_change": 4, "joint_elasticity": 2, "thermal_drift": 1,
-        "coupling": 1}
-    readme = " ".join(README.split())
-    assert ("(false names, 39): backlash 19, torque offset 12, payload 4, elasticity 2, thermal drift 1, coupling 1"
-            ) in readme
-    assert _count(sets, "backlash") == (29, 31) and _count(sets, "joint_elasticity") == (12, 32)
-    assert _count(sets, "cogging") == (24, 26) and _count(sets, "coupling") == (19, 29)
-    assert "Backlash named 29 of 31 times, joint elasticity 12 of 32, cogging 24 of 26, coupling 19 of 29." in readme
-    within = _payload_within_5(rows)
-    assert sorted(k for k, ok in within.items() if not ok) == [29, 151] and len(within) == 8
+    readme = _assert_summary_counts(sets, README, 4, [29, 151])
     assert "on the right link 8 of 8 times, its mass within 5 % on 6 of them (cases 29 and 151 are not)" in readme
     assert _payload_error_pct(rows, 29) == -42 and _payload_error_pct(rows, 151) == -14
     assert "case 29 (-42 %" in readme and "case 151 (-14 %)" in readme
