@@ -279,3 +279,27 @@ def test_a_grid_point_whose_columns_are_not_finite_is_skipped_not_a_traceback(rd
         for c in ranking:
             if isinstance(c.term, Backlash):
                 assert c.fitted.hyper not in (len(grid) - 1, len(grid) - 2)
+
+
+def test_readme_speed_figures_of_stop_24_are_its_committed_runs():
+    """Stop 24's machine, the stop-23 code and this release in turn (docs/bench/diagnose-speed-2026-11-26-stop24
+    {-before,}.txt): the README's totals, ratios and search seconds are what scripts/bench_diagnose_speed.py printed,
+    and the goal is not met there."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    readme = " ".join((root / "README.md").read_text().split())
+    got = {}
+    for tag in ("-before", ""):
+        out = (root / f"docs/bench/diagnose-speed-2026-11-26-stop24{tag}.txt").read_text()
+        total = re.search(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", out, flags=re.M)
+        search = re.search(r"search \(every candidate, every step\)\s+([\d.]+)", out)
+        got[tag] = (total.groups(), search.group(1))
+        assert float(total.group(3)) > 1.0                       # not met on that machine
+    (b_cpu, b_per4, b_x), b_search = got["-before"]
+    (a_cpu, a_per4, a_x), a_search = got[""]
+    assert f"the stop-23 code **{b_cpu} CPU s, per 4 minutes {b_per4} ({b_x}x the goal)**" in readme
+    assert f"this release **{a_cpu} CPU s, per 4 minutes {a_per4} ({a_x}x)**" in readme
+    assert f"costs about 2 CPU s of the search ({b_search} -> {a_search} s)" in readme
+    assert 1.0 < float(a_search) - float(b_search) < 3.0
