@@ -525,7 +525,8 @@ class MismatchSearch:
 
         def settle(names, rounds):                     # fit ``keep`` on ``names``; in turns with the load if coupled
             for _ in range(rounds if coupled else 1):
-                build()
+                if coupled or "A" not in box:          # the columns change only with the load
+                    build()
                 ix, coef = solve(keep, names)
                 at = 0
                 for k in keep:
