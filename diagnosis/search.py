@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .backfit import JointNormalEquations
 from .library import KINDS, LIBRARY, REFERENCE_KINDS, Fitted, Term
 from .residual import ResidualData
 
@@ -461,7 +462,7 @@ class MismatchSearch:
         if len(order) < 2:
             return
         w = weights["low"]
-        n = rd.n
+        w_safe = np.where(w > 0, w, 1.0)
         masks = self._row_masks(rd)
 
         def raw(s, coef):                              # a term's unfiltered torque (N, n) on its motors
@@ -475,102 +476,41 @@ class MismatchSearch:
         old_wide = sum(raw(s, s.fitted.coef) for s in order)
         b0 = res["low"] + old_low                      # what the joint terms together are fitted to
         b = b0 * w
-        edges = np.cumsum([0] + [len(s.fitted.coef) for s in order])
-
-        def idx(subset):
-            return np.concatenate([np.arange(edges[k], edges[k + 1]) for k in subset]).astype(int)
-
-        def judged(s):
-            j = s.fitted.joint
-            return [j] if s.term.own_motor else list(s.term.motors(rd, j))
-
-        # a load-dependent friction reads the load, which a payload changes: estimated in turns (the load from the
-        # payload's last estimate) until both settle
+        sizes = [len(s.fitted.coef) for s in order]
         step = getattr(rd, "torque_step_motor", None)
         step = None if step is None or not np.all(np.asarray(step, float) > 0) else np.asarray(step, float)
-        coupled = (any(s.term.uses_load for s in order) and any(s.term.changes_load for s in order))
+        # a load-dependent friction reads the load, which a payload changes: estimated in turns (the load from the
+        # payload's last estimate) until both settle
+        coupled = any(s.term.uses_load for s in order) and any(s.term.changes_load for s in order)
         keep = list(range(len(order)))
         coefs = {k: s.fitted.coef for k, s in enumerate(order)}
-        dropped = []
-        box = {}
+        eq = None
 
-        def build():                                   # the weighted columns and per-motor Gram matrices
-            if coupled:
-                rd.extra["load_change"] = sum((raw(order[k], coefs[k]) for k in keep if order[k].term.changes_load),
-                                              np.zeros_like(b))
-            A = np.concatenate([band_cols(s) for s in order], axis=2) * w[None, :, None]
-            grams = {}
-            for name, m in masks.items():              # per motor: G (n, K, K), A'b (n, K), b'b (n,), row count
-                G = np.zeros((n, A.shape[2], A.shape[2]))
-                Ab = np.zeros((n, A.shape[2]))
-                bb = np.zeros(n)
-                for i in range(n):
-                    a_i, b_i = A[m[:, i], i, :], b[m[:, i], i]
-                    G[i], Ab[i], bb[i] = a_i.T @ a_i, a_i.T @ b_i, b_i @ b_i
-                grams[name] = (G, Ab, bb, m.sum(axis=0))
-            box["A"], box["grams"] = A, grams
-
-        def solve(subset, names):
-            ix = idx(subset)
-            G = sum(box["grams"][nm][0].sum(axis=0) for nm in names)[np.ix_(ix, ix)]
-            Ab = sum(box["grams"][nm][1].sum(axis=0) for nm in names)[ix]
-            return ix, np.linalg.lstsq(G, Ab, rcond=None)[0]
-
-        def sse(name, ix, coef):                       # (n,) weighted SSE per motor on the rows ``name``
-            G, Ab, bb, _ = box["grams"][name]
-            if len(ix) == 0:
-                return bb.copy()
-            return np.maximum(bb - 2 * Ab[:, ix] @ coef
-                              + np.einsum("k,mkl,l->m", coef, G[np.ix_(range(n), ix, ix)], coef), 0.0)
-
-        def settle(names, rounds):                     # fit ``keep`` on ``names``; in turns with the load if coupled
+        def settle(parts, rounds):                     # fit ``keep`` on ``parts``; in turns with the load if coupled
+            nonlocal eq
             for _ in range(rounds if coupled else 1):
-                if coupled or "A" not in box:          # the columns change only with the load
-                    build()
-                ix, coef = solve(keep, names)
+                if coupled:
+                    rd.extra["load_change"] = sum((raw(order[k], coefs[k]) for k in keep
+                                                   if order[k].term.changes_load), np.zeros_like(b))
+                if coupled or eq is None:              # the columns change only with the load
+                    A = np.concatenate([band_cols(s) for s in order], axis=2) * w[None, :, None]
+                    eq = JointNormalEquations(A, b, masks, sizes)
+                ix, coef = eq.solve(keep, parts)
                 at = 0
                 for k in keep:
-                    coefs[k] = coef[at:at + len(order[k].fitted.coef)]
-                    at += len(order[k].fitted.coef)
+                    coefs[k] = coef[at:at + sizes[k]]
+                    at += sizes[k]
             return ix, coef
 
         settle(["fit_rows"], 3)                        # every term in, the load settled on the fit rows
-        A, grams = box["A"], box["grams"]
-        share = self._select_share({"fit_rows": grams["fit_rows"][2], "select_rows": grams["select_rows"][2]}, masks)
-        while len(keep) > 1:
-            ix, coef = solve(keep, ["fit_rows"])
-            with_all = sse("select_rows", ix, coef)
-            pred = A[:, :, ix] @ coef if step is not None else None
-            worst = None
-            for k in keep:
-                ix_r, coef_r = solve([q for q in keep if q != k], ["fit_rows"])
-                without = sse("select_rows", ix_r, coef_r)
-                mot = judged(order[k])
-                own = 1 - with_all[mot].sum() / max(without[mot].sum(), 1e-300)
-                every = 1 - (share * with_all).sum() / max((share * without).sum(), 1e-300)
-                counts, floor = np.inf, order[k].term.min_counts
-                if pred is not None and floor > 0:  # its own torque beside the others, in counts of the read-back
-                    diff = (pred - A[:, :, ix_r] @ coef_r) / np.where(w > 0, w, 1.0)[None, :]
-                    counts = float(np.nanmax(_rms(diff, masks["select_rows"]) / step))
-                weak = own < self.min_gain or every < self.min_gain_all or counts < floor
-                if weak and (worst is None or own < worst[1]):
-                    worst = (k, own, every, counts)
-            if worst is None:
-                break
-            keep.remove(worst[0])
-            dropped.append(worst)
+        dropped = self._drop_weakest(rd, eq, order, keep, w_safe, step)
         ix, coef = settle(["fit_rows", "select_rows"], 2)   # the survivors on FIT + SELECT, as the ladder does
-        A, grams = box["A"], box["grams"]
-        G = sum(grams[nm][0].sum(axis=0) for nm in ("fit_rows", "select_rows"))[np.ix_(ix, ix)]
-        rows = int(grams["fit_rows"][3].sum() + grams["select_rows"][3].sum())
-        resid = float((sse("fit_rows", ix, coef) + sse("select_rows", ix, coef)).sum())
-        std_all = np.sqrt(np.clip(np.diag(resid / max(rows - len(ix), 1) * np.linalg.pinv(G)), 0, None))
+        std_all = eq.std(ix, coef, ["fit_rows", "select_rows"])
         refits, at = {}, 0
         for k in keep:
             s = order[k]
-            size = len(s.fitted.coef)
-            c, sd = coef[at:at + size], std_all[at:at + size]
-            at += size
+            c, sd = coef[at:at + sizes[k]], std_all[at:at + sizes[k]]
+            at += sizes[k]
             eff, summary, ok, why = s.term.effect(rd, s.fitted.joint, s.fitted.hyper, c, sd)
             if not ok:                                 # an implausible refit: the ladder's reading stands
                 rd.extra.pop("load_change", None)
@@ -582,46 +522,90 @@ class MismatchSearch:
             s.fitted = Fitted(kind=s.fitted.kind, joint=s.fitted.joint, hyper=s.fitted.hyper, coef=c, coef_std=sd,
                               effect=eff, summary=summary + (f" ({s.note})" if s.note else ""), plausible=True,
                               why_not="")
-        for k, own, every, counts in dropped:
-            s = order[k]
-            short = [f"cuts {own:.1%} of its own motors' select residual (< {self.min_gain:.0%})"
-                     if own < self.min_gain else "",
-                     f"cuts {every:.1%} over all motors (< {self.min_gain_all:.0%})" if every < self.min_gain_all else "",
-                     f"its own torque is {counts:.2f} count of the drive's current read-back at most (RMS, select rows; "
-                     f"< {s.term.min_counts:g}: within the model's own precision)"
-                     if counts < s.term.min_counts else ""]
-            why = ("dropped after the search: with the other findings fitted together, "
-                   + "; ".join(x for x in short if x))
+        for s, why in dropped:
             (self.references_ if s.term.reference else self.accepted_).remove(s)
             self.dropped_.append((s, why))
-        survivors = [order[k] for k in keep]
-        new_wide = sum(raw(s, s.fitted.coef) for s in survivors)
-        new_low = (A[:, :, ix] @ coef) / np.where(w > 0, w, 1.0)[None, :]
+        new_wide = sum(raw(order[k], order[k].fitted.coef) for k in keep)
+        new_low = (eq.A[:, :, ix] @ coef) / w_safe[None, :]
         res["low"] = b0 - new_low
         res["wide"] = res["wide"] + old_wide - new_wide
         self.corrections_["low"] += new_low - old_low
         self.corrections_["wide"] += new_wide - old_wide
-        # each survivor's gains on what the survivors before it leave (fit, select and report rows)
+        self._sequential_gains(rd, eq, order, keep, ix, coef, w_safe)
+
+    def _judged(self, rd: ResidualData, s: Scored) -> list:
+        """The motors a term's gains are judged on: its joint's own (``Term.own_motor``) or every one it moves."""
+        j = s.fitted.joint
+        return [j] if s.term.own_motor else list(s.term.motors(rd, j))
+
+    def _drop_weakest(self, rd, eq, order: list, keep: list, w_safe: np.ndarray, step) -> list:
+        """Fitted together on the fit rows, the terms ``keep`` (indices into ``order``; changed in place) lose, one
+        at a time and the weakest first, each that beside the others cuts under ``min_gain`` of its own motors'
+        select residual, under ``min_gain_all`` over all motors (each motor counted as in the ladder's 1 % test),
+        or whose own torque beside them is under its ``Term.min_counts`` counts of the read-back (``step``: N*m
+        per count per motor, None when the log does not give it); the last one stays. Returns (Scored, why) of the
+        dropped."""
+        masks = self._row_masks(rd)
+        share = self._select_share({"fit_rows": eq.parts["fit_rows"][2], "select_rows": eq.parts["select_rows"][2]},
+                                   masks)
+        out = []
+        while len(keep) > 1:
+            ix, coef = eq.solve(keep, ["fit_rows"])
+            with_all = eq.sse("select_rows", ix, coef)
+            pred = eq.A[:, :, ix] @ coef if step is not None else None
+            worst = None
+            for k in keep:
+                ix_r, coef_r = eq.solve([q for q in keep if q != k], ["fit_rows"])
+                without = eq.sse("select_rows", ix_r, coef_r)
+                mot = self._judged(rd, order[k])
+                own = 1 - with_all[mot].sum() / max(without[mot].sum(), 1e-300)
+                every = 1 - (share * with_all).sum() / max((share * without).sum(), 1e-300)
+                counts, floor = np.inf, order[k].term.min_counts
+                if pred is not None and floor > 0:  # its own torque beside the others, in counts of the read-back
+                    diff = (pred - eq.A[:, :, ix_r] @ coef_r) / w_safe[None, :]
+                    counts = float(np.nanmax(_rms(diff, masks["select_rows"]) / step))
+                weak = own < self.min_gain or every < self.min_gain_all or counts < floor
+                if weak and (worst is None or own < worst[1]):
+                    worst = (k, own, every, counts)
+            if worst is None:
+                break
+            k, own, every, counts = worst
+            keep.remove(k)
+            floor = order[k].term.min_counts
+            short = [f"cuts {own:.1%} of its own motors' select residual (< {self.min_gain:.0%})"
+                     if own < self.min_gain else "",
+                     f"cuts {every:.1%} over all motors (< {self.min_gain_all:.0%})" if every < self.min_gain_all else "",
+                     f"its own torque is {counts:.2f} count of the drive's current read-back at most (RMS, select rows; "
+                     f"< {floor:g}: within the model's own precision)" if counts < floor else ""]
+            out.append((order[k], "dropped after the search: with the other findings fitted together, "
+                        + "; ".join(x for x in short if x)))
+        return out
+
+    def _sequential_gains(self, rd, eq, order: list, keep: list, ix: np.ndarray, coef: np.ndarray,
+                          w_safe: np.ndarray) -> None:
+        """Each survivor's gains (fit, select and report rows; its judged motors, all motors, its own motor) and
+        report-rows RMS before and after it, on what the survivors before it leave, from the joint coefficients
+        ``coef`` of the columns ``ix``: the report's per-finding figures."""
         done = []
+        cnt = np.maximum(eq.rows("holdout_rows"), 1)
         for k in keep:
             s = order[k]
-            ix0 = idx(done) if done else np.array([], int)
+            ix0, ix1 = eq.index(done), eq.index(done + [k])
             c0 = coef[np.searchsorted(ix, ix0)] if len(ix0) else np.array([])
-            ix1 = idx(done + [k])
             c1 = coef[np.searchsorted(ix, ix1)]
-            mot = judged(s)
-            before = {nm: sse(nm, ix0, c0) for nm in grams}
-            after = {nm: sse(nm, ix1, c1) for nm in grams}
+            before = {p: eq.sse(p, ix0, c0) for p in eq.parts}
+            after = {p: eq.sse(p, ix1, c1) for p in eq.parts}
 
-            def gain(nm, motors=mot):
-                b_, a_ = before[nm][motors].sum(), after[nm][motors].sum()
+            def gain(p, motors):
+                b_, a_ = before[p][motors].sum(), after[p][motors].sum()
                 return 1.0 - a_ / b_ if b_ > 0 else 0.0
-            cnt = np.maximum(grams["holdout_rows"][3], 1)
-            s.fit_gain, s.select_gain, s.holdout_gain = gain("fit_rows"), gain("select_rows"), gain("holdout_rows")
+            mot = self._judged(rd, s)
+            s.fit_gain, s.select_gain = gain("fit_rows", mot), gain("select_rows", mot)
+            s.holdout_gain = gain("holdout_rows", mot)
             s.select_gain_all = gain("select_rows", slice(None))
             s.select_gain_own = gain("select_rows", [s.fitted.joint])
-            s.rms_before = np.sqrt(before["holdout_rows"] / cnt) / np.where(w > 0, w, 1.0)
-            s.rms_after = np.sqrt(after["holdout_rows"] / cnt) / np.where(w > 0, w, 1.0)
+            s.rms_before = np.sqrt(before["holdout_rows"] / cnt) / w_safe
+            s.rms_after = np.sqrt(after["holdout_rows"] / cnt) / w_safe
             done.append(k)
 
     def _nested_check(self, scored: list[Scored]) -> None:

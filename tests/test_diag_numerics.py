@@ -537,3 +537,33 @@ def test_a_reading_with_its_own_torque_beside_the_others_is_kept():
     search, res, weights = state([(twin, 1, 0.27), (mass, 0, 0.11), (friction, 0, 0.144)])
     search._joint_refit(rd, res, weights)
     assert all("count" not in why for _, why in search.dropped_)
+
+
+def test_joint_normal_equations_match_a_direct_least_squares_on_every_subset_and_part():
+    """diagnosis.backfit.JointNormalEquations: the coefficients, per-motor squared errors and standard errors it gets
+    from its kept normal equations equal a least squares over the samples themselves, for any subset of the terms
+    and any part of the rows."""
+    from diagnosis.backfit import JointNormalEquations
+
+    rng = np.random.default_rng(4)
+    N, n, sizes = 900, 3, [2, 1, 3]
+    A = rng.normal(size=(N, n, sum(sizes)))
+    b = A @ rng.normal(size=sum(sizes)) + rng.normal(0, 0.3, (N, n))
+    masks = {"fit_rows": rng.uniform(size=(N, n)) < 0.5}
+    masks["select_rows"] = ~masks["fit_rows"] & (rng.uniform(size=(N, n)) < 0.6)
+    eq = JointNormalEquations(A, b, masks, sizes)
+    for subset in ([0], [1, 2], [0, 2], [0, 1, 2]):
+        ix, coef = eq.solve(subset, ["fit_rows"])
+        m = masks["fit_rows"]
+        direct = np.linalg.lstsq(A[m][:, ix], b[m], rcond=None)[0]
+        np.testing.assert_allclose(coef, direct, rtol=1e-9, atol=1e-12)
+        for part, mk in masks.items():
+            e = np.where(mk, b - A[:, :, ix] @ coef, 0.0)
+            np.testing.assert_allclose(eq.sse(part, ix, coef), (e ** 2).sum(axis=0), rtol=1e-9)
+        X, y = A[m][:, ix], b[m]
+        r = y - X @ coef
+        cov = (r @ r) / (len(y) - len(ix)) * np.linalg.inv(X.T @ X)
+        np.testing.assert_allclose(eq.std(ix, coef, ["fit_rows"]), np.sqrt(np.diag(cov)), rtol=1e-8)
+    assert list(eq.index([2, 0])) == [3, 4, 5, 0, 1] and len(eq.index([])) == 0
+    np.testing.assert_allclose(eq.sse("fit_rows", eq.index([]), np.array([])),
+                               (np.where(masks["fit_rows"], b, 0.0) ** 2).sum(axis=0), rtol=1e-12)
