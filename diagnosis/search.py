@@ -466,7 +466,8 @@ class MismatchSearch:
         masks = self._row_masks(rd)
 
         def raw(s, coef):                              # a term's unfiltered torque (N, n) on its motors
-            return _on_motors(s.term.columns(rd, s.fitted.joint, s.fitted.hyper), s.term.motors(rd, s.fitted.joint)) @ coef
+            j = s.fitted.joint
+            return _on_motors(s.term.columns(rd, j, s.fitted.hyper), s.term.motors(rd, j)) @ coef
 
         def band_cols(s):
             return np.nan_to_num(_on_motors(s.term.band_columns(rd, s.fitted.joint, s.fitted.hyper),
