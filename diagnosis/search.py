@@ -429,7 +429,8 @@ class MismatchSearch:
         self._joint_refit(rd, res, weights)
         self.final_ = {band: {"fit": _rms(r, m_fit), "select": _rms(r, m_sel), "holdout": _rms(r, m_rep)}
                        for band, r in res.items()}
-        for cache in ("_fits", "_stats_cache", "_masks", "_columns_cache", "_stores", "_order"):   # arrays of the recording's size
+        # arrays of the recording's size
+        for cache in ("_fits", "_stats_cache", "_masks", "_columns_cache", "_stores", "_order"):
             self.__dict__.pop(cache, None)
         for cache in {key for t in self.library for key in t.search_caches}:   # the terms' stores for the search
             rd.extra.pop(cache, None)
@@ -575,9 +576,10 @@ class MismatchSearch:
             floor = order[k].term.min_counts
             short = [f"cuts {own:.1%} of its own motors' select residual (< {self.min_gain:.0%})"
                      if own < self.min_gain else "",
-                     f"cuts {every:.1%} over all motors (< {self.min_gain_all:.0%})" if every < self.min_gain_all else "",
-                     f"its own torque is {counts:.2f} count of the drive's current read-back at most (RMS, select rows; "
-                     f"< {floor:g}: within the model's own precision)" if counts < floor else ""]
+                     f"cuts {every:.1%} over all motors (< {self.min_gain_all:.0%})"
+                     if every < self.min_gain_all else "",
+                     f"its own torque is {counts:.2f} count of the drive's current read-back at most (RMS, select "
+                     f"rows; < {floor:g}: within the model's own precision)" if counts < floor else ""]
             out.append((order[k], "dropped after the search: with the other findings fitted together, "
                         + "; ".join(x for x in short if x)))
         return out
