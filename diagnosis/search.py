@@ -479,8 +479,6 @@ class MismatchSearch:
         b0 = res["low"] + old_low                      # what the joint terms together are fitted to
         b = b0 * w
         sizes = [len(s.fitted.coef) for s in order]
-        step = getattr(rd, "torque_step_motor", None)
-        step = None if step is None or not np.all(np.asarray(step, float) > 0) else np.asarray(step, float)
         # a load-dependent friction reads the load, which a payload changes: estimated in turns (the load from the
         # payload's last estimate) until both settle
         coupled = any(s.term.uses_load for s in order) and any(s.term.changes_load for s in order)
@@ -505,7 +503,7 @@ class MismatchSearch:
             return ix, coef
 
         settle(["fit_rows"], 3)                        # every term in, the load settled on the fit rows
-        dropped = self._drop_weakest(rd, eq, order, keep, w_safe, step)
+        dropped = self._drop_weakest(rd, eq, order, keep, w_safe)
         ix, coef = settle(["fit_rows", "select_rows"], 2)   # the survivors on FIT + SELECT, as the ladder does
         std_all = eq.std(ix, coef, ["fit_rows", "select_rows"])
         refits, at = {}, 0
@@ -540,12 +538,12 @@ class MismatchSearch:
         j = s.fitted.joint
         return [j] if s.term.own_motor else list(s.term.motors(rd, j))
 
-    def _drop_weakest(self, rd, eq, order: list, keep: list, w_safe: np.ndarray, step) -> list:
+    def _drop_weakest(self, rd, eq, order: list, keep: list, w_safe: np.ndarray) -> list:
         """Fitted together on the fit rows, the terms ``keep`` (indices into ``order``; changed in place) lose, one
         at a time and the weakest first, each that beside the others cuts under ``min_gain`` of its own motors'
         select residual, under ``min_gain_all`` over all motors (each motor counted as in the ladder's 1 % test),
-        or whose own torque beside them is under its ``Term.min_counts`` counts of the read-back (``step``: N*m
-        per count per motor, None when the log does not give it); the last one stays. Returns (Scored, why) of the
+        or whose own torque beside them is under its ``Term.min_counts`` counts of the read-back (``_counts``, as
+        the ladder's floor: none when the log does not give the read-back's step); the last one stays. Returns (Scored, why) of the
         dropped."""
         masks = self._row_masks(rd)
         share = self._select_share({"fit_rows": eq.parts["fit_rows"][2], "select_rows": eq.parts["select_rows"][2]},
@@ -554,7 +552,7 @@ class MismatchSearch:
         while len(keep) > 1:
             ix, coef = eq.solve(keep, ["fit_rows"])
             with_all = eq.sse("select_rows", ix, coef)
-            pred = eq.A[:, :, ix] @ coef if step is not None else None
+            pred = None
             worst = None
             for k in keep:
                 ix_r, coef_r = eq.solve([q for q in keep if q != k], ["fit_rows"])
@@ -562,10 +560,12 @@ class MismatchSearch:
                 mot = self._judged(rd, order[k])
                 own = 1 - with_all[mot].sum() / max(without[mot].sum(), 1e-300)
                 every = 1 - (share * with_all).sum() / max((share * without).sum(), 1e-300)
-                counts, floor = np.inf, order[k].term.min_counts
-                if pred is not None and floor > 0:  # its own torque beside the others, in counts of the read-back
+                counts, floor = float("nan"), order[k].term.min_counts
+                if floor > 0:                       # its own torque beside the others, in counts of the read-back
+                    if pred is None:
+                        pred = eq.A[:, :, ix] @ coef
                     diff = (pred - eq.A[:, :, ix_r] @ coef_r) / w_safe[None, :]
-                    counts = float(np.nanmax(_rms(diff, masks["select_rows"]) / step))
+                    counts = self._counts(rd, masks["select_rows"], np.arange(rd.n), diff)
                 weak = own < self.min_gain or every < self.min_gain_all or counts < floor
                 if weak and (worst is None or own < worst[1]):
                     worst = (k, own, every, counts)

@@ -438,7 +438,8 @@ def _refit_setup(N=6000, seed=3, step=(1e-3, 1e-3)):
     rows = np.zeros(N, int)
     rows[N // 3:2 * N // 3], rows[2 * N // 3:] = 1, 2
     rd = SimpleNamespace(n=2, t=t, fs=500.0, extra={}, mask=np.ones((N, 2), bool), fit_rows=rows == 0,
-                         select_rows=rows == 1, holdout_rows=rows == 2, torque_step_motor=np.asarray(step),
+                         select_rows=rows == 1, holdout_rows=rows == 2,
+                         torque_step_motor=None if step is None else np.asarray(step),
                          tau_rigid_motor=np.stack([0.5 + 0.3 * np.sin(2 * np.pi * 0.2 * t), np.zeros(N)], axis=1),
                          lowpass=lambda X: X)
     direction = np.sign(np.sin(2 * np.pi * 0.45 * t))
@@ -533,7 +534,7 @@ def test_a_reading_with_its_own_torque_beside_the_others_is_kept():
     assert [s.fitted.kind for s in search.accepted_] == ["payload_change", "load_dependent_friction"]
     assert not search.dropped_
     assert abs(search.accepted_[0].fitted.coef[0] - 0.42) < 0.005
-    rd, mass, twin, friction, state, _ = _refit_setup(step=(0.0, 0.0))
+    rd, mass, twin, friction, state, _ = _refit_setup(step=None)     # as torque_step gives without a rated current
     search, res, weights = state([(twin, 1, 0.27), (mass, 0, 0.11), (friction, 0, 0.144)])
     search._joint_refit(rd, res, weights)
     assert all("count" not in why for _, why in search.dropped_)
