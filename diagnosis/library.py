@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from scipy.optimize import brentq
 from scipy.signal import lfilter, welch
 
 from .residual import ResidualData
@@ -75,6 +76,8 @@ class Term:
     yields = False        # a reference that steps aside for a named term passing every test on its own motor
     uses_load = False     # its columns read the transmitted load (``_load``): estimated again when it changes
     changes_load = False  # its torque is rigid-body load the gears carry (a payload): ``_load`` adds it
+    bound_of = None       # the term whose free reading this one is with the last coefficient held at its bound, 0
+                          # (plausible only where that free reading is significantly past it: search._nested_check)
     search_caches: tuple = ()   # rd.extra keys of what the term keeps for the search alone (``grid_columns(...,
                                 # keep=True)``, ``store_bytes``): MismatchSearch.fit drops them when it ends
 
@@ -932,6 +935,24 @@ def _typical_inertia(rd: ResidualData, j: int) -> float:
     return float(np.median(np.clip(np.nan_to_num(_mass_column(rd, j)[:, j]), 1e-9, None)))
 
 
+def _gravity_joint(rd: ResidualData, samples: int = 2000) -> np.ndarray:
+    """g(q) (joint side, N*m; (m, n) at up to ``samples`` poses spread over the recording): pinocchio's
+    computeGeneralizedGravity, made once per recording."""
+    g = rd.extra.get("gravity_joint")
+    if g is None:
+        arm = rd.arm
+        model, data = arm.model, arm.model.createData()
+        q = np.nan_to_num(rd.q_joint)
+        idx = np.unique(np.linspace(0, len(q) - 1, min(samples, len(q))).astype(int))
+        qp = pin.neutral(model)
+        g = np.empty((len(idx), rd.n))
+        for i, s in enumerate(idx):
+            qp[arm.idx_v] = q[s]
+            g[i] = pin.computeGeneralizedGravity(model, data, qp)[arm.idx_v]
+        rd.extra["gravity_joint"] = g
+    return g
+
+
 # --- transmission compliance: the link simulated behind the measured gear motion ------------------------------------
 GAP_WIDTHS = (0.005, 0.01, 0.02, 0.04, 0.08)           # rad joint side
 NATURAL_HZ = (3.0, 6.0, 12.0, 24.0)                     # link-on-spring natural frequency grid
@@ -1294,6 +1315,34 @@ class BacklashOnFlank(Term):
                 f"{k:.3g} N*m/rad (damping not resolved: 0.3 of critical assumed){held}", ok, why)
 
 
+class BacklashOnStiffFlank(BacklashOnFlank):
+    """:class:`BacklashOnFlank` with the contact's compliance held at its bound, zero (a contact cannot be negatively
+    compliant): the constrained least squares when the free fit puts the compliance significantly below zero (the
+    elastic column then takes something else, and the two-column reading is refused). One column, b/2. The contact's
+    stiffness is not resolved: it is reported at the value that puts the link's resonance at twice the torque band
+    (its compliance would show in the band below that). Must still beat ``joint_elasticity`` (``extends``, margin);
+    plausible only where the free reading's compliance is significantly below zero (``bound_of``; bench case 270:
+    -2.4e-4 +- 4e-5, b 0.033 rad for 0.029, its free reading refused; elsewhere the free reading is the constrained
+    one, and this narrower model named false plays on elastic elbows, cases 3 and 8)."""
+    hyper_name = "quasi-static flank, stiff contact"
+    bound_of = BacklashOnFlank     # the free reading whose compliance this one holds at zero (search._nested_check)
+
+    def columns(self, rd, j, h):
+        tau_j = np.nan_to_num(rd.tau_rigid_joint[:, j])
+        flank = -_rnea_dq(rd, j) * np.sign(tau_j)[:, None]          # joint side, per unit b/2
+        col = np.zeros((len(tau_j), rd.n, 1))
+        col[:, :, 0] = flank @ rd.K                                  # motor side: K^T, row-wise
+        return col
+
+    def effect(self, rd, j, h, coef, std):
+        m_typ = _typical_inertia(rd, j)
+        k = float(m_typ * (2 * np.pi * 2 * float(rd.signals.settings.fc_acceleration_hz)) ** 2)
+        effect, summary, ok, why = super().effect(rd, j, h, np.array([coef[0], 1.0 / k]), np.array([std[0], 0.0]))
+        summary = summary.replace("contact stiffness", "contact stiffness not resolved (taken as").replace(
+            " N*m/rad (damping", " N*m/rad, its resonance at twice the torque band; damping", 1)
+        return effect, summary, ok, why
+
+
 def _dominant_hz(x: np.ndarray, fs: float, above: float) -> float:
     """Frequency (Hz) of the largest peak of x's spectrum above ``above`` Hz (Welch, scipy.signal)."""
     if len(x) < 16:
@@ -1320,11 +1369,13 @@ class BacklashRattle(Term):
 
     The quasi-static :class:`BacklashOnFlank` and the simulated :class:`Backlash` read the play in the torque band,
     where a vertical base axis shows it little and its rattling link is chaotic (the exact play replayed on the
-    recorded motion does worse than nothing). Not told apart: a joint's spring whose resonance lies below the
-    oscillation decouples the link too, so an elastic joint in a limit cycle reads as a play (bench cases 56, 100,
-    103, and since ``ALPHA_RANGE`` reaches 2 all four 250 Hz elastic shoulders, 29, 49, 103, 109, at alpha 1.39-1.44
-    beside the plays' 1.43-1.46; neither the share alpha split by the transmitted load nor the swing's harmonics
-    separate them, docs/diagnosis.md)."""
+    recorded motion does worse than nothing). A joint's spring whose resonance lies below the oscillation decouples
+    the link too. Where nothing holds the link on a flank (:meth:`free_link`: a vertical base axis) the two are told
+    apart by alpha: a free link misses exactly 1 of its inertial torque, a link on a spring more
+    (:class:`ElasticRattle`), so a play is not named there above ``ALPHA_FREE``. Where gravity loads the link they
+    are not told apart: an elastic joint in a limit cycle reads as a play (the 250 Hz elastic shoulders, cases 29,
+    49, 103, 109, at alpha 1.19-1.45 beside the plays' 1.42-1.46; neither the share alpha split by the transmitted
+    load nor the swing's harmonics separate them, docs/diagnosis.md)."""
     kind, band, own_motor, above_band = "backlash", "wide", True, True
     hyper_name = "gear oscillation above the torque band"
     MIN_SWING = 0.002     # rad joint side, peak to peak: the gear's angle above the band on the benchmark's arms
@@ -1382,9 +1433,39 @@ class BacklashRattle(Term):
                             f"({f_a:.3g} Hz): the same limit cycle, one play")
         return ""
 
+    # a free link misses exactly its inertial torque (alpha 1): the benchmark's plays on vertical base axes read
+    # 0.996-1.028 at 250 and 500 Hz (21 cases), their elastic axes 1.07-1.27 (8 cases; docs/diagnosis.md, stop 25)
+    ALPHA_FREE = 1.05
+    FREE_GRAVITY = 0.1    # a link whose gravity torque (RMS) is under this share of the oscillation's inertial torque
+                          # floats in the gap: nothing holds it on a flank, so the gear's swing does not knock it back
+
+    @staticmethod
+    def free_link(rd, j) -> tuple[bool, float, float]:
+        """Whether joint j's link, let go by its gear, floats (no gravity holds it on a flank): its gravity torque
+        g_j(q) (RMS over the recording, pinocchio) under ``FREE_GRAVITY`` times the inertial torque of the gear's
+        oscillation (M_jj omega^2 times half the swing). Returns (free, gravity RMS, oscillation torque), N*m joint
+        side; made once per joint and recording."""
+        cache = rd.extra.setdefault("rattle_free_link", {})
+        if j not in cache:
+            width, f_osc = BacklashRattle.oscillation(rd, j)
+            g = _gravity_joint(rd)[:, j]
+            g_rms = float(np.sqrt(np.mean(g ** 2))) if len(g) else 0.0
+            swing_torque = float(_typical_inertia(rd, j) * (2 * np.pi * f_osc) ** 2 * width / 2) \
+                if np.isfinite(f_osc) else 0.0
+            cache[j] = (g_rms <= BacklashRattle.FREE_GRAVITY * swing_torque, g_rms, swing_torque)
+        return cache[j]
+
     def effect(self, rd, j, h, coef, std):
         alpha = float(coef[0])
         width, f_osc = self.oscillation(rd, j)
+        free, g_rms, swing_torque = self.free_link(rd, j)
+        if free and alpha - 3 * float(std[0]) > self.ALPHA_FREE:
+            return ({"kind": self.kind, "joints": [j], "width": width, "stiffness": 0.0, "damping": 0.0},
+                    f"joint {rd.joints[j]}'s gear oscillates above the torque band ({width:.3g} rad peak to peak at "
+                    f"{f_osc:.3g} Hz) and the motors miss {alpha:.0%} of the link's torque for it", False,
+                    f"the motors miss {alpha:.2f} of the link's fast torque, more than a free link's 1 (no gravity "
+                    f"holds this link on a flank: {g_rms:.2g} N*m against the swing's {swing_torque:.2g} N*m): a "
+                    "spring, not a gap, lets it lag (joint_elasticity)")
         # the contact is not resolved: its stiffness taken as the one that puts the link's resonance on it at the
         # oscillation's frequency (the limit cycle rings the contact), damping 0.3 of critical (BacklashOnFlank's)
         f_band = float(rd.signals.settings.fc_acceleration_hz)
@@ -1407,6 +1488,72 @@ class BacklashRattle(Term):
                 f"torque for that motion (the link, free in the gap, does not follow; the contact is not resolved: "
                 f"its stiffness {k:.3g} N*m/rad puts the link's resonance at the oscillation's {f_osc:.3g} Hz, "
                 "damping 0.3 of critical assumed)", ok, why)
+
+
+class ElasticRattle(BacklashRattle):
+    """An elastic joint seen above the torque band: the position loop makes the gear oscillate (the rotor, above the
+    link's resonance on its spring, moves almost alone: the same limit cycle a play lets the loop into), and the link
+    follows only through the spring. Driven at omega above its natural frequency omega_a = sqrt(k / M_jj), the link
+    moves against the gear by omega_a^2 / (omega^2 - omega_a^2) of the gear's motion, so the motors miss a share
+    alpha = omega^2 / (omega^2 - omega_a^2) > 1 of the inertial torque the rigid model predicts (the column of
+    :class:`BacklashRattle`), and  k = M_jj omega^2 (1 - 1 / alpha).
+
+    Told apart from a play only where nothing holds the link on a flank (:meth:`BacklashRattle.free_link`: a
+    vertical base axis): there a play's free link misses exactly 1. Where gravity loads the link, a play's link is
+    knocked back by each swing and misses more than 1 too (the benchmark's shoulders: 1.19-1.46 for plays and
+    springs alike), so this term does not name a spring there."""
+    kind = "joint_elasticity"
+    extends = ()
+    hyper_name = "gear oscillation above the torque band (link on a spring)"
+
+    def stiffness(self, rd, j, alpha: float) -> float:
+        """k (N*m/rad) whose share missed, alpha(t) = 1 / (1 - k / (M_jj(q(t)) omega^2)), averages to the fitted
+        alpha with the least-squares weights of the fit (the column squared, fit and select rows): the link's inertia
+        changes with the pose, and the poses where the column is large weigh most. On the benchmark's elastic base
+        axes 4-35 % from the truth (M_jj's median alone: 0-34 %, biased high)."""
+        cache = rd.extra.setdefault("elastic_rattle_weights", {})
+        if j not in cache:
+            col = self.columns(rd, j, None)[:, j, 0]
+            m = rd.mask[:, j] & (rd.fit_rows | rd.select_rows)
+            cache[j] = (col[m] ** 2, np.clip(np.nan_to_num(_mass_column(rd, j)[:, j]), 1e-9, None)[m])
+        wt, M = cache[j]
+        w2 = (2 * np.pi * self.oscillation(rd, j)[1]) ** 2
+        if not len(wt) or not np.sum(wt) > 0:
+            return float(_typical_inertia(rd, j) * w2 * (1 - 1 / alpha))
+
+        def excess(k):
+            return float(np.sum(wt / (1 - k / (M * w2))) / np.sum(wt)) - alpha
+
+        k_max = 0.999 * float(M.min()) * w2          # the share grows without bound as omega_a nears omega
+        return float(brentq(excess, 0.0, k_max)) if excess(k_max) > 0 else k_max
+
+    def effect(self, rd, j, h, coef, std):
+        alpha = float(coef[0])
+        width, f_osc = self.oscillation(rd, j)
+        free, g_rms, swing_torque = self.free_link(rd, j)
+        f_band = float(rd.signals.settings.fc_acceleration_hz)
+        m_typ = _typical_inertia(rd, j)
+        hi = self.ALPHA_RANGE[1]
+        k = self.stiffness(rd, j, alpha) if alpha > 1 and np.isfinite(f_osc) else 0.0
+        f_nat = float(np.sqrt(k / m_typ) / (2 * np.pi)) if k > 0 else 0.0
+        swings = width >= self.MIN_SWING and f_osc >= 2 * f_band
+        above = alpha - 3 * float(std[0]) > self.ALPHA_FREE
+        ok = free and swings and above and alpha < hi
+        why = ("" if ok else
+               f"gravity holds this link on a flank ({g_rms:.2g} N*m against the swing's {swing_torque:.2g} N*m): "
+               "a play's link knocked back by the swing misses more than 1 too, so a spring is not told apart here"
+               if not free else
+               f"the gear does not oscillate above the band ({width:.2g} rad peak to peak at {f_osc:.3g} Hz)"
+               if not swings else
+               f"the motors miss {alpha:.2f} of the link's fast torque: a free link's 1 (a play), not a spring's "
+               f"more (above {self.ALPHA_FREE:g})" if not above else
+               f"share of the link's fast torque missing ({alpha:.2f}) is not a spring's (below {hi:g})")
+        return ({"kind": self.kind, "joints": [j], "stiffness": k},
+                f"joint {rd.joints[j]} is elastic: the gear oscillates above the torque band ({width:.3g} rad peak to "
+                f"peak at {f_osc:.3g} Hz, the loop's limit cycle) and the link follows it only through a spring: the "
+                f"motors miss {alpha:.0%} of the link's torque for that motion, which puts the link's natural "
+                f"frequency at {f_nat:.2g} Hz, stiffness about {k:.3g} N*m/rad with the link's inertia "
+                f"({m_typ:.3g} kg*m^2)", ok, why)
 
 
 # --- gear matrix error --------------------------------------------------------------------------------------------
@@ -1480,7 +1627,7 @@ class Coupling(Term):
 LIBRARY: tuple[Term, ...] = (FrictionRefit(), BreakawayTransient(), TorqueOffset(), Stribeck(), Cogging(), CoggingWide(),
                              PayloadChange(), ThermalDrift(),
                              LoadDependentFriction(), AsymmetricFriction(), JointElasticity(), Backlash(), BacklashOnFlank(),
-                             BacklashRattle(),
+                             BacklashOnStiffFlank(), BacklashRattle(), ElasticRattle(),
                              Coupling())
 KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if not t.reference))   # the named effects (hil_sim's kinds)
 REFERENCE_KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if t.reference))

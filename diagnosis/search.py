@@ -615,11 +615,17 @@ class MismatchSearch:
         """The data's own null: a term that contains a simpler one (``Term.extends``) must cut what the simpler one
         leaves on the select rows of its motors by ``Term.margin``, or it is not plausible (the simpler physics,
         or a plain refit of the model, explains the data as well)."""
-        by_key = {(s.fitted.kind, s.fitted.joint): s for s in scored}
+        # the simpler kind's best reading in the same band (a kind can have readings in both: ElasticRattle's
+        # joint_elasticity is read above the band, JointElasticity's in it; their select gains are not comparable)
+        by_key = {}
+        for s in scored:
+            key = (s.fitted.kind, s.fitted.joint, s.band)
+            if key not in by_key or s.select_gain > by_key[key].select_gain:
+                by_key[key] = s
         for s in scored:
             term = s.term
             for simpler_kind in term.extends:
-                simpler = by_key.get((simpler_kind, s.fitted.joint))
+                simpler = by_key.get((simpler_kind, s.fitted.joint, s.band))
                 if simpler is None or not s.fitted.plausible:
                     continue
                 left = (1 - s.select_gain) / max(1 - simpler.select_gain, 1e-12)
@@ -627,6 +633,19 @@ class MismatchSearch:
                     s.fitted.plausible = False
                     s.fitted.why_not = (f"no better than {simpler_kind} on the select rows ({s.select_gain:.1%} vs "
                                         f"{simpler.select_gain:.1%}): the simpler physics explains it")
+        # a reading with a coefficient held at its bound (``Term.bound_of``: the free reading's last coefficient held
+        # at zero) is the constrained least squares only where the free reading puts that coefficient significantly
+        # past the bound; elsewhere the free reading is the constrained one, and this is another, narrower model
+        for s in scored:
+            free_type = getattr(s.term, "bound_of", None)
+            if free_type is None or not s.fitted.plausible:
+                continue
+            free = next((f for f in scored if type(f.term) is free_type and f.fitted.joint == s.fitted.joint), None)
+            if free is None or not free.fitted.coef[-1] < -3 * free.fitted.coef_std[-1]:
+                s.fitted.plausible = False
+                s.fitted.why_not = ("the free reading's last coefficient is not significantly below its bound "
+                                    + (f"({free.fitted.coef[-1]:.3g} +- {free.fitted.coef_std[-1]:.2g})" if free else
+                                       "(not fitted)") + ": that reading stands")
 
     def _shift_check(self, rd: ResidualData, scored: list[Scored], res: dict, weights: dict) -> None:
         """The data's null for a term whose column ties the residual to another signal (``Term.shifted_columns``,
