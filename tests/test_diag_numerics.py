@@ -364,6 +364,41 @@ def test_a_spring_behind_a_rattling_gear_is_named_elastic_with_its_stiffness(k):
     assert not ok_held and "gravity holds this link" in why_held
 
 
+def test_a_play_on_a_stiff_flank_only_where_the_free_compliance_is_below_zero_and_nesting_reads_one_band():
+    """search._nested_check: BacklashOnStiffFlank (the contact's compliance held at 0) is plausible only where the
+    free two-column reading puts that compliance significantly below zero (bench case 270: -2.4e-4 +- 4e-5); a
+    nested term is compared with the simpler kind's best reading in its own band (ElasticRattle's joint_elasticity
+    is read above the band: its select gain says nothing of the band's spring)."""
+    from diagnosis.library import BacklashOnFlank, BacklashOnStiffFlank, ElasticRattle, Fitted, JointElasticity
+    from diagnosis.search import MismatchSearch, Scored
+
+    def scored(term, coef, std, gain, plausible=True, band="low"):
+        fit = Fitted(kind=term.kind, joint=2, hyper=None, coef=np.array(coef), coef_std=np.array(std), effect={},
+                     summary="", plausible=plausible, why_not="")
+        return Scored(fitted=fit, fit_gain=gain, select_gain=gain, select_gain_all=gain, holdout_gain=gain,
+                      rms_before=np.ones(3), rms_after=np.ones(3), band=band, term=term)
+
+    def check(free_compliance):
+        spring = scored(JointElasticity(), [0.0037], [2e-5], 0.68)
+        free = scored(BacklashOnFlank(), [0.0173, free_compliance], [1.7e-4, 4e-5], 0.72, plausible=False)
+        stiff = scored(BacklashOnStiffFlank(), [0.0167], [8e-5], 0.74)
+        MismatchSearch()._nested_check([spring, free, stiff])
+        return stiff.fitted
+    assert check(-2.4e-4).plausible
+    refused = check(+3e-4)
+    assert not refused.plausible and "not significantly below its bound" in refused.why_not
+    assert not check(-0.5e-4).plausible                     # -1.25 std: not significant
+
+    # a play in the band against the band's spring (0.60), not against the wide reading's 0.05
+    wide = scored(ElasticRattle(), [1.2], [3e-3], 0.05, band="wide")
+    band_spring = scored(JointElasticity(), [0.001], [1e-5], 0.60)
+    flank = scored(BacklashOnFlank(), [0.001, 0.0004], [1e-4, 1e-5], 0.61)
+    for order in ([band_spring, wide, flank], [wide, band_spring, flank]):
+        flank.fitted.plausible, flank.fitted.why_not = True, ""
+        MismatchSearch()._nested_check(list(order))
+        assert not flank.fitted.plausible and "no better than joint_elasticity" in flank.fitted.why_not
+
+
 def test_no_thermal_drift_is_looked_for_in_a_recording_too_short_to_tell_a_lag_from_a_trend():
     """ThermalDrift.too_short: under 2 x the fastest lag tried (10 s) every lag is a ramp, so no time constant is
     tried (the clean real TX40 recording, 9 s, had a 10 s drift named); the benchmark's recordings (31-51 s) keep
