@@ -82,8 +82,9 @@ def fig_finding(res: DiagnosisResult, k: int):
     r0 = (meas - pred)[rows, i]
     r1 = (meas - pred - corr)[rows, i]
     if f.kind == "cogging":
-        x = np.mod(rd.q_motor[rows, i] * f.hyper, 2 * np.pi)
-        xl = f"motor angle x {int(f.hyper)} mod 2 pi (rad)"
+        periods = int(f.effect["periods_per_rev"])      # the hyper-parameter alone, or (periods, pass band)
+        x = np.mod(rd.q_motor[rows, i] * periods, 2 * np.pi)
+        xl = f"motor angle x {periods} mod 2 pi (rad)"
     elif f.kind == "thermal_drift":
         x, xl = rd.t[rows], "time (s)"
     elif f.kind in FRICTION_KINDS:

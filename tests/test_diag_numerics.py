@@ -399,6 +399,39 @@ def test_a_play_on_a_stiff_flank_only_where_the_free_compliance_is_below_zero_an
         assert not flank.fitted.plausible and "no better than joint_elasticity" in flank.fitted.why_not
 
 
+def test_a_ripple_the_loop_attenuates_with_speed_is_read_where_it_passes():
+    """CoggingPassBand: a drive's loop passes a cogging ripple into the current only at low ripple frequencies;
+    faster, the current keeps less of it, shifted in phase with the sign of the speed (here, at the signed ripple
+    frequency f = p w / 2 pi, quasi-static: H(f) = exp(-(f / 55 Hz)^2) exp(i 0.01 f), near the benchmark's 500 Hz
+    base axes: 0.85 and 0.22 rad at 22 Hz, 0.28 and 0.62 rad at 62 Hz). Read over every row (CoggingWide), the two
+    directions' phasors differ and the ripple is refused; read under a 12 Hz pass band, both directions find the
+    same ripple and its amplitude within 10 %."""
+    from diagnosis.library import CoggingPassBand, CoggingWide
+
+    fs, p, amp, phi = 500.0, 12, 0.0044, 1.2
+    t = np.arange(0, 60, 1 / fs)
+    theta = 120 * np.sin(0.45 * t) + 3 * np.sin(0.13 * t)                # rad, motor side: |w| up to 54 rad/s
+    w = np.gradient(theta, t)
+    f_signed = p * w / (2 * np.pi)
+    H = np.exp(-(f_signed / 55.0) ** 2) * np.exp(1j * 0.01 * f_signed)
+    residual = np.imag(amp * np.exp(1j * (p * theta + phi)) * H)
+    rd = SimpleNamespace(n=1, t=t, fs=fs, q_motor=theta[:, None], dq_motor=w[:, None], fit_rows=t < 40,
+                         select_rows=t >= 40, extra={})
+
+    def read(term, h):
+        X = term.columns(rd, 0, h)[:, 0, :]
+        rows = rd.fit_rows & np.any(X != 0, axis=1)
+        coef, *_ = np.linalg.lstsq(X[rows], residual[rows], rcond=None)
+        return term.effect(rd, 0, h, coef, np.full(4, 1e-6))
+    _, _, ok_all, why_all = read(CoggingWide(), p)
+    assert not ok_all and "is not the one found turning backward" in why_all
+    assert (p, 12.0) in CoggingPassBand().grid(rd, 0)
+    effect, summary, ok, why = read(CoggingPassBand(), (p, 12.0))
+    assert ok, why
+    assert effect["periods_per_rev"] == p and effect["amplitude"] == pytest.approx(amp, rel=0.10)
+    assert "under 12 Hz" in summary
+
+
 def test_no_thermal_drift_is_looked_for_in_a_recording_too_short_to_tell_a_lag_from_a_trend():
     """ThermalDrift.too_short: under 2 x the fastest lag tried (10 s) every lag is a ramp, so no time constant is
     tried (the clean real TX40 recording, 9 s, had a 10 s drift named); the benchmark's recordings (31-51 s) keep
