@@ -622,6 +622,54 @@ class CoggingPassBand(CoggingWide):
             X[:, 2], X[:, 3] = s * bwd * passing, c * bwd * passing
             yield h, X
 
+    def grid_gram(self, rd, j, grid, rows, w, b):
+        """:meth:`Term.grid_gram` of the whole grid without its columns. A grid point's rows are those turning
+        slower than 2 pi f_pass / p, so with the rows sorted by speed each is a prefix: per p, the sines and cosines
+        of the widest band's prefix only (a fine ripple's band holds few rows), their products' running sums, and
+        each band's normal equations read at its prefix's end (forward and backward columns share no row: G is two
+        2 x 2 blocks). Equal to the columns' normal equations to rounding (tests/test_diag_numerics.py)."""
+        if rows.shape[1] != 1:
+            return None
+        idx = np.flatnonzero(rows[:, 0])
+        v = _moving(rd, j)[idx]
+        order = np.argsort(np.abs(v), kind="stable")
+        idx, v = idx[order], v[order]
+        speed = np.abs(v)
+        th = np.nan_to_num(rd.q_motor[idx, j])
+        slide = _sliding(rd, j)[idx]
+        dirs = ((v >= 0) * slide, (v < 0) * slide)
+        res = b[idx, 0]
+        wj = float(w[0])
+
+        def gen():
+            grid_ = list(grid)
+            i = 0
+            while i < len(grid_):
+                p = int(grid_[i][0])
+                bands = []
+                while i < len(grid_) and int(grid_[i][0]) == p:
+                    bands.append(grid_[i])
+                    i += 1
+                ends = [int(np.searchsorted(speed, 2 * np.pi * float(h[1]) / p, side="right")) for h in bands]
+                n = max(ends)
+                if n == 0:
+                    continue
+                sn, cs = np.sin(p * th[:n]), np.cos(p * th[:n])
+                sums = []
+                for d in dirs:
+                    dn = d[:n]
+                    parts = np.stack([sn * sn * dn, sn * cs * dn, cs * cs * dn, sn * res[:n] * dn, cs * res[:n] * dn])
+                    sums.append(np.concatenate([np.zeros((5, 1)), np.cumsum(parts, axis=1)], axis=1))
+                for h, end in zip(bands, ends):
+                    G, Ab = np.zeros((4, 4)), np.zeros(4)
+                    for k, cum in enumerate(sums):
+                        ss, sc, cc, sb, cb = cum[:, end]
+                        G[2 * k:2 * k + 2, 2 * k:2 * k + 2] = [[ss, sc], [sc, cc]]
+                        Ab[2 * k:2 * k + 2] = [sb, cb]
+                    if np.any(G):
+                        yield h, G * wj * wj, Ab * wj
+        return gen()
+
     def effect(self, rd, j, h, coef, std):
         effect, summary, ok, why = super().effect(rd, j, int(h[0]), coef, std)
         return (effect, summary + f", read where its frequency p |w| / 2 pi is under {float(h[1]):g} Hz (above, the "

@@ -431,6 +431,23 @@ def test_a_ripple_the_loop_attenuates_with_speed_is_read_where_it_passes():
     assert effect["periods_per_rev"] == p and effect["amplitude"] == pytest.approx(amp, rel=0.10)
     assert "under 12 Hz" in summary
 
+    # its normal equations without columns (grid_gram: rows sorted by speed, running sums) are the columns' own
+    term = CoggingPassBand()
+    grid = term.grid(rd, 0)
+    assert len({h[0] for h in grid}) > 10 and {h[1] for h in grid} == set(CoggingPassBand.PASS_HZ)
+    rows = rd.fit_rows[:, None].copy()
+    rows[::7] = False
+    wj, b = 3.0, residual[:, None] * 3.0
+    grams = {h: (G, Ab) for h, G, Ab in term.grid_gram(rd, 0, grid, rows, np.array([wj]), b)}
+    for h, X in term.grid_columns(rd, 0, grid, rows):
+        A = X * wj
+        if not np.any(A):
+            assert h not in grams
+            continue
+        G, Ab = grams[h]
+        assert np.allclose(G, A.T @ A, rtol=1e-9, atol=1e-9 * np.abs(G).max())
+        assert np.allclose(Ab, A.T @ b[rows[:, 0], 0], rtol=1e-9, atol=1e-9 * np.abs(Ab).max())
+
 
 def test_no_thermal_drift_is_looked_for_in_a_recording_too_short_to_tell_a_lag_from_a_trend():
     """ThermalDrift.too_short: under 2 x the fastest lag tried (10 s) every lag is a ramp, so no time constant is
