@@ -78,6 +78,8 @@ class Term:
     changes_load = False  # its torque is rigid-body load the gears carry (a payload): ``_load`` adds it
     bound_of = None       # the term whose free reading this one is with the last coefficient held at its bound, 0
                           # (plausible only where that free reading is significantly past it: search._nested_check)
+    step_caches: tuple = ()     # rd.extra keys of columns the term makes once and reads at every ladder step
+                                # (not the search's keep-store protocol below); dropped when the search ends
     search_caches: tuple = ()   # rd.extra keys of what the term keeps for the search alone (``grid_columns(...,
                                 # keep=True)``, ``store_bytes``): MismatchSearch.fit drops them when it ends
 
@@ -1492,12 +1494,18 @@ class BacklashRattle(Term):
     def motors(self, rd, j):
         return np.arange(rd.n)
 
+    step_caches = ("rattle_columns",)
+
     def columns(self, rd, j, h):
-        joint_side = _mass_column(rd, j) * _gear_side(rd, rd.ddq_motor)[:, j:j + 1]  # (N, n); q_dd unfiltered
-        motor = np.ascontiguousarray(joint_side @ rd.K)                            # K^T, row-wise
-        col = np.zeros((len(rd.t), rd.n, 1))
-        col[:, :, 0] = -(motor - rd.lowpass(motor))
-        return col
+        # made once per joint for the search (this term and ElasticRattle read the same column at every step)
+        cache = rd.extra.setdefault("rattle_columns", {})
+        if j not in cache:
+            joint_side = _mass_column(rd, j) * _gear_side(rd, rd.ddq_motor)[:, j:j + 1]  # (N, n); q_dd unfiltered
+            motor = np.ascontiguousarray(joint_side @ rd.K)                            # K^T, row-wise
+            col = np.zeros((len(rd.t), rd.n, 1))
+            col[:, :, 0] = -(motor - rd.lowpass(motor))
+            cache[j] = col
+        return cache[j].copy()
 
     SAME_CYCLE = 0.05     # relative: two joints' gears oscillating this close in frequency swing in one cycle
     ALPHA_RANGE = (0.2, 2.0)   # a free link misses up to 1 (it stays put); one bounced back from the flanks moves

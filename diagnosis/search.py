@@ -432,7 +432,7 @@ class MismatchSearch:
         # arrays of the recording's size
         for cache in ("_fits", "_stats_cache", "_masks", "_columns_cache", "_stores", "_order"):
             self.__dict__.pop(cache, None)
-        for cache in {key for t in self.library for key in t.search_caches}:   # the terms' stores for the search
+        for cache in {key for t in self.library for key in t.search_caches + t.step_caches}:   # the terms' stores
             rd.extra.pop(cache, None)
         return self
 
