@@ -923,7 +923,7 @@ SETS_0_159 = ("cases 0-71 **69 of 83 (83 %)**, clean 11 of 11; 72-95 25 of 30; t
               "(74 %)**, clean 3 of 4; 136-159 **19 of 27 (70 %)**")     # the stop-23 and stop-24 summaries alike
 
 
-def _assert_summary_counts(sets: dict, text: str, false_payloads: int, payload_misses: list) -> str:
+def _assert_summary_counts(sets: dict, text: str, false_payloads: int, payload_misses: list, elastic: int = 12) -> str:
     """The stop-23 and stop-24 summaries (``text``, same recordings): the confusion matrix over cases 0-159, the
     false names (all but the payloads' alike), the counts by kind, and the cases whose payload mass is not within
     5 %. Returns ``text`` on one line."""
@@ -941,9 +941,10 @@ def _assert_summary_counts(sets: dict, text: str, false_payloads: int, payload_m
     flat = " ".join(text.split())
     assert (f"(false names, {35 + false_payloads}): backlash 19, torque offset 12, payload {false_payloads}, "
             "elasticity 2, thermal drift 1, coupling 1") in flat
-    assert _count(sets, "backlash") == (29, 31) and _count(sets, "joint_elasticity") == (12, 32)
+    assert _count(sets, "backlash") == (29, 31) and _count(sets, "joint_elasticity") == (elastic, 32)
     assert _count(sets, "cogging") == (24, 26) and _count(sets, "coupling") == (19, 29)
-    assert "Backlash named 29 of 31 times, joint elasticity 12 of 32, cogging 24 of 26, coupling 19 of 29." in flat
+    assert (f"Backlash named 29 of 31 times, joint elasticity {elastic} of 32, cogging 24 of 26, coupling 19 of "
+            "29.") in flat
     within = _payload_within_5(rows)
     assert sorted(k for k, ok in within.items() if not ok) == payload_misses and len(within) == 8
     return flat
@@ -994,6 +995,9 @@ def test_a_rerun_takes_the_visibility_only_from_a_row_made_from_the_same_recordi
 
 
 # --- stop 24: the findings estimated together (the README's figures) ----------------------------------------------
+STOP24_README = DOC[DOC.index("#### The README's summary at stop 24"):DOC.index("### 2026-11-26, stop 23:")]
+
+
 def _stop24_section() -> str:
     return " ".join(DOC[DOC.index("### 2026-11-26, stop 24:"):DOC.index("### 2026-11-26, stop 23:")].split())
 
@@ -1031,7 +1035,7 @@ def test_stop24_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(stop24):
                  "| all 160 | **147 of 186 (79 %)** | 138 of 151 (91 %) | **20 of 21 (95 %)** | **39** | 147, 20 of 21, 41 |",
                  "| 160-199 | **33 of 47 (70 %)** | 29 of 39 | 3 of 3 | 12 | 33, 3 of 3, 13 |",
                  "| **200-239, out of sample** | **30 of 40 (75 %)** | 29 of 33 (88 %) | **7 of 7** | 8 | 31, 7 of 7, 8 |"))
-    readme = " ".join(README.split())
+    readme = " ".join(STOP24_README.split())
     assert ("**147 of 186 concealed effects (79 %, goal 90 %)** and nothing on **20 of 21 clean cases (95 %, goal "
             "95 %)**, with **39 false names** (41 with the stop-23 code on the same recordings)") in readme
     assert SETS_0_159 in readme
@@ -1076,7 +1080,7 @@ def test_stop24_changes_only_these_cases_on_the_same_recordings(stop24):
     assert "(-0.13 -> -0.09 kg, -0.14 -> -0.10 kg)" in section
     assert "its payload mass reads 0.169 kg for 0.197 (-14 %, was +3.8 %)" in section
     assert "**228 loses** its play on joint 3 (out of sample)" in section
-    readme = " ".join(README.split())
+    readme = " ".join(STOP24_README.split())
     assert "now **0.422 kg on link 4** and the friction coefficient 0.132 for 0.131 (was 0.144)" in readme
     assert "its mass reads 0.753 kg for 0.752 (was 0.721)" in readme
 
@@ -1089,7 +1093,7 @@ def test_stop24_confusion_matrix_and_parameter_errors_in_the_readme_are_the_benc
 
     sets = stop24["stop24"][0]
     rows = [r for k in ACC_SETS for r in sets[k][0]]
-    readme = _assert_summary_counts(sets, README, 4, [29, 151])
+    readme = _assert_summary_counts(sets, STOP24_README, 4, [29, 151])
     assert "on the right link 8 of 8 times, its mass within 5 % on 6 of them (cases 29 and 151 are not)" in readme
     assert _payload_error_pct(rows, 29) == -42 and _payload_error_pct(rows, 151) == -14
     assert "case 29 (-42 %" in readme and "case 151 (-14 %)" in readme
@@ -1124,10 +1128,155 @@ def test_stop24_fresh_cases_drawn_after_the_change_in_the_readme_and_docs_are_th
     assert kinds == {"cogging": (8, 11), "backlash": (5, 7), "joint_elasticity": (3, 12), "coupling": (3, 5),
                      "thermal_drift": (2, 2)}
     assert s["confusion"]["joint_elasticity"]["backlash"] == 4 and s["confusion"]["joint_elasticity"]["nothing"] == 5
-    readme = " ".join(README.split())
+    readme = " ".join(STOP24_README.split())
     assert ("**Fresh cases 240-279** (the hard kinds, drawn and recorded after this change was final): **21 of 37 "
             "(57 %)**, 20 of 26 visible, **clean 10 of 10**, 7 false names; the stop-23 code names exactly the same "
             "there.") in readme
     assert "**57 % on the fresh cases 240-279**: joint elasticity 3 of 12 there, 4 read as a play" in readme
     assert ("By kind: cogging 8 of 11, backlash 5 of 7, joint elasticity 3 of 12 (4 read as a play, 5 not named), "
             "coupling 3 of 5, thermal drift 2 of 2.") in _stop24_section()
+
+
+# --- stop 25: an elastic base axis told from a play; a ripple read where the loop passes it (the README's figures) ---
+def _stop25_section() -> str:
+    return " ".join(DOC[DOC.index("### 2026-11-26, stop 25:"):DOC.index("### 2026-11-26, stop 24:")].split())
+
+
+@pytest.fixture(scope="module")
+def stop25():
+    """{tag: (four in-sample sets, 160-199, 200-239, 240-279)} for this release and the stop-24 code, on the same
+    recordings."""
+    out = {}
+    for tag in ("stop25", "stop24"):
+        sets = _scored_sets(tag, "2026-11-26")
+        later = tuple(_scored(f"{name}-2026-11-26-{tag}") for name in ("oos", "oos2", "fresh24"))
+        for (rows, _), first in zip(later, (160, 200, 240)):
+            assert [r["seed"] for r in rows] == list(range(first, first + 40))
+        out[tag] = (sets,) + later
+    return out
+
+
+def test_stop25_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(stop25):
+    sets, oos, oos2, fresh24 = stop25["stop25"]
+    want = {"all": ((70, 83), (65, 68), (11, 11), 8), "fresh": ((25, 30), (24, 25), (3, 3), 3),
+            "hard": ((35, 46), (33, 37), (3, 4), 18), "new": ((19, 27), (18, 21), (3, 3), 10)}
+    _assert_rates(sets, want)
+    assert _totals(sets) == (149, 186, 20, 21, 39)
+    assert _rates(oos[1]) == (36, 47, 32, 39, 3, 3, 12) and _rates(oos2[1]) == (33, 40, 32, 33, 7, 7, 7)
+    assert _rates(fresh24[1]) == (27, 37, 24, 26, 10, 10, 4)
+    b_sets, b_oos, b_oos2, b_fresh24 = stop25["stop24"]
+    assert _totals(b_sets) == (147, 186, 20, 21, 39)
+    assert [_rates(x[1])[0] for x in (b_oos, b_oos2, b_fresh24)] == [33, 30, 21]
+    assert [_false(x[1]) for x in (b_oos, b_oos2, b_fresh24)] == [12, 8, 7]
+    _assert_all_in(_stop25_section(), (
+        "| 0-71 | **70 of 83 (84 %)** | 65 of 68 | 11 of 11 | 8 | 69, 11 of 11, 8 |",
+        "| 72-95 | 25 of 30 (83 %) | 24 of 25 | 3 of 3 | 3 | 25, 3 of 3, 3 |",
+        "| 96-135 (hard kinds) | **35 of 46 (76 %)** | 33 of 37 | 3 of 4 | 18 | 34, 3 of 4, 19 |",
+        "| 136-159 | **19 of 27 (70 %)** | 18 of 21 | 3 of 3 | 10 | 19, 3 of 3, 9 |",
+        "| all 160 | **149 of 186 (80 %)** | 140 of 151 (93 %) | **20 of 21 (95 %)** | **39** | 147, 20 of 21, 39 |",
+        "| 160-199 | **36 of 47 (77 %)** | 32 of 39 | 3 of 3 | 12 | 33, 3 of 3, 12 |",
+        "| 200-239 | **33 of 40 (83 %)** | 32 of 33 | 7 of 7 | 7 | 30, 7 of 7, 8 |",
+        "| 240-279 | **27 of 37 (73 %)** | 24 of 26 | 10 of 10 | 4 | 21, 10 of 10, 7 |"))
+    readme = " ".join(README.split())
+    assert ("**149 of 186 concealed effects (80 %, goal 90 %)** and nothing on **20 of 21 clean cases (95 %, goal "
+            "95 %)**, with **39 false names** (the stop-24 code on the same recordings: 147, 20 of 21, 39)") in readme
+    assert ("cases 0-71 **70 of 83 (84 %)**, clean 11 of 11; 72-95 25 of 30; the hard kinds 96-135 **35 of 46 "
+            "(76 %)**, clean 3 of 4; 136-159 **19 of 27 (70 %)**") in readme
+    assert ("160-199 **36 of 47** (stop-24 code 33), 200-239 **33 of 40** (30), 240-279 **27 of 37** (21), clean 20 "
+            "of 20") in readme
+    assert "140 of the 151 visible effects are named" in readme
+
+
+def test_stop25_changes_only_these_cases_on_the_same_recordings(stop25):
+    """Against the stop-24 code on the same 280 recordings: 8 elastic base axes named elastic (was a play), 6
+    ripples named, case 270's elbow play; false plays on 57, 145 and 194; case 176 loses its coupling."""
+    def named(row):
+        return sorted((f["kind"], f["joint"]) for f in row["named"])
+
+    changed = {}
+    for i in range(4):
+        a, b = stop25["stop24"][i], stop25["stop25"][i]
+        pairs = ([(x, y) for k in ACC_SETS for x, y in zip(a[k][0], b[k][0])] if i == 0 else list(zip(a[0], b[0])))
+        for x, y in pairs:
+            assert x["seed"] == y["seed"] and x["effects"] == y["effects"] and x["visibility"] == y["visibility"]
+            if named(x) != named(y):
+                changed[x["seed"]] = (named(x), named(y))
+    elastic_base = {56, 97, 166, 181, 217, 250, 262, 277}
+    for seed in elastic_base:
+        was, now = changed[seed]
+        assert ("backlash", 0) in was and ("joint_elasticity", 0) in now and ("backlash", 0) not in now
+    ripples = {182: 5, 194: 3, 209: 0, 227: 0, 254: 5, 272: 0}
+    for seed, j in ripples.items():
+        assert ("cogging", j) not in changed[seed][0] and ("cogging", j) in changed[seed][1]
+    assert changed[270] == ([], [("backlash", 2)])
+    assert changed[57][1] == [("backlash", 2), ("thermal_drift", 4)] and changed[145][1] == [
+        ("backlash", 2), ("joint_elasticity", 0)]
+    assert changed[194][1] == [("backlash", 3), ("cogging", 3)]
+    assert changed[176] == ([("cogging", 4), ("coupling", 1), ("torque_offset", 5)],
+                            [("cogging", 4), ("payload_change", 2), ("torque_offset", 2)])
+    assert set(changed) == elastic_base | set(ripples) | {57, 145, 176, 270}
+    section = _stop25_section()
+    assert "Named right now: **56, 97, 166, 181, 217, 250, 262, 277**; no base-axis play is lost." in section
+    assert "Named now: **182, 209, 227, 254, 272** (and 194, with a false play beside it)." in section
+    readme = " ".join(README.split())
+    assert "(cases 56, 97, 166, 181, 217, 250, 262, 277), no play is lost" in readme
+    assert "6 more cogging ripples named (182, 194, 209, 227, 254, 272)" in readme
+    assert "Case 176 loses its coupling" in readme
+
+
+def test_stop25_confusion_matrix_and_parameter_errors_in_the_readme_are_the_benchmarks(stop25):
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_diagnose
+
+    sets = stop25["stop25"][0]
+    rows = [r for k in ACC_SETS for r in sets[k][0]]
+    readme = _assert_summary_counts(sets, README, 4, [29, 151], elastic=14)
+    assert "on the right link 8 of 8 times, its mass within 5 % on 6 of them (cases 29 and 151 are not)" in readme
+    assert _payload_error_pct(rows, 29) == -42 and _payload_error_pct(rows, 151) == -14
+    # the seven elastic joints still read as plays are shoulders and elbows (gravity-loaded)
+    as_play = sorted(r["seed"] for r in rows for e in r["effects"] if e["kind"] == "joint_elasticity"
+                     and any(f["kind"] == "backlash" and f["joint"] == e["joints"][0] for f in r["named"]))
+    assert as_play == [29, 49, 84, 100, 103, 106, 109]
+    assert "(shoulders 29, 49, 100, 103, 109; elbows 84, 106)" in _stop25_section()
+
+    def pooled(tag, kind, key):
+        err = bench_diagnose.score([r for k in ACC_SETS for r in stop25[tag][0][k][0]])["param_errors"]
+        v = _rel_errors(err, kind, key)
+        return round(float(np.median(v)), 1), round(float(np.max(v)), 1)
+    assert pooled("stop25", "payload_change", "mass") == (0.6, 41.8)
+    assert pooled("stop25", "load_dependent_friction", "coefficient") == (0.6, 8.0)
+    assert pooled("stop25", "coupling", "coefficient") == (1.8, 6.4)
+    assert pooled("stop25", "cogging", "amplitude") == (4.0, 26.7)
+    assert pooled("stop24", "cogging", "amplitude") == (4.7, 88.8)
+    assert pooled("stop25", "backlash", "width") == (53.8, 93.1)
+    assert pooled("stop25", "joint_elasticity", "stiffness") == (22.3, 59.1)
+    assert ("payload mass **0.6 %, 42 %**, load-dependent friction's coefficient **0.6 %, 8.0 %**, coupling 1.8 %, "
+            "6.4 %, cogging amplitude 4.0 %, 27 % (stop-24 code 4.7 %, 89 %)") in readme
+    assert "(median error 54 %, max 93 %)" in readme and "median 22 %, max 59 %" in readme
+
+
+def test_stop25_fresh_cases_drawn_after_the_change_in_the_readme_and_docs_are_the_benchmarks():
+    """Cases 280-319, drawn and recorded after this release's change was final: one case changes against the
+    stop-24 code (298, an elastic base axis); the README and docs figures are bench_diagnose's score of the rows."""
+    rows, s = _scored("fresh25-2026-11-26-stop25")
+    before, b = _scored("fresh25-2026-11-26-stop25-before")
+    assert [r["seed"] for r in rows] == [r["seed"] for r in before] == list(range(280, 320))
+    assert _rates(s) == (31, 40, 28, 31, 7, 7, 9) and _rates(b) == (30, 40, 28, 31, 7, 7, 10)
+    diff = {x["seed"]: (sorted((f["kind"], f["joint"]) for f in x["named"]),
+                        sorted((f["kind"], f["joint"]) for f in y["named"]))
+            for x, y in zip(before, rows) if sorted((f["kind"], f["joint"]) for f in x["named"]) !=
+            sorted((f["kind"], f["joint"]) for f in y["named"])}
+    assert diff == {298: ([("backlash", 0)], [("joint_elasticity", 0)])}
+    kinds = {k: (s["confusion"][k][k], sum(s["confusion"][k].values()))
+             for k in ("cogging", "backlash", "joint_elasticity", "coupling")}
+    assert kinds == {"cogging": (12, 13), "backlash": (9, 10), "joint_elasticity": (5, 10), "coupling": (2, 4)}
+    readme = " ".join(README.split())
+    assert ("**Fresh cases 280-319** (the hard kinds, drawn and recorded after this release's change was final): "
+            "**31 of 40 (78 %)**, 28 of 31 visible (90 %), **clean 7 of 7**, 9 false names; the stop-24 code: 30 of "
+            "40, 10 false names.") in readme
+    assert "**78 % on the fresh cases 280-319** (joint elasticity 5 of 10 there)" in readme
+    section = _stop25_section()
+    assert "| **280-319, fresh (drawn after the change)** | **31 of 40 (78 %)** | 28 of 31 (90 %) | **7 of 7** | 9 | 30, 7 of 7, 10 |" in section
+    assert ("By kind: cogging 12 of 13, backlash 9 of 10, joint elasticity 5 of 10, coupling 2 of 4") in section

@@ -303,3 +303,28 @@ def test_readme_speed_figures_of_stop_24_are_its_committed_runs():
     assert f"this release **{a_cpu} CPU s, per 4 minutes {a_per4} ({a_x}x)**" in readme
     assert f"costs about 2 CPU s of the search ({b_search} -> {a_search} s)" in readme
     assert 1.0 < float(a_search) - float(b_search) < 3.0
+
+
+def test_readme_speed_figures_of_stop_25_are_its_committed_runs():
+    """Stop 25: the stop-24 code and this release in turn, with ``--per-kind`` (docs/bench/diagnose-speed-2026-11-26-
+    stop25{-before,}.txt): the README's totals, ratios and search seconds are what scripts/bench_diagnose_speed.py
+    printed, the goal is not met, and the per-kind table has this release's two new readings' kinds."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    readme = " ".join((root / "README.md").read_text().split())
+    got = {}
+    for tag in ("-before", ""):
+        out = (root / f"docs/bench/diagnose-speed-2026-11-26-stop25{tag}.txt").read_text()
+        total = re.search(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", out, flags=re.M)
+        search = re.search(r"search \(every candidate, every step\)\s+([\d.]+)", out)
+        got[tag] = (total.groups(), search.group(1), out)
+        assert float(total.group(3)) > 1.0                       # not met on this machine
+    (b_cpu, b_per4, b_x), b_search, b_out = got["-before"]
+    (a_cpu, a_per4, a_x), a_search, a_out = got[""]
+    assert (f"**Stop 25, this release: {a_cpu} CPU s, per 4 minutes {a_per4} ({a_x}x the goal); the stop-24 code in "
+            f"the same session {b_cpu} CPU s, per 4 minutes {b_per4} ({b_x}x): not met**") in readme
+    assert f"the search {b_search} -> {a_search} s" in readme
+    assert "joint_elasticity (unfiltered)" in a_out and "joint_elasticity (unfiltered)" not in b_out
+    assert "code: /tmp/js2_stop24/diagnosis" in b_out and "code: /work/main/diagnosis" in a_out
