@@ -994,6 +994,28 @@ def test_a_rerun_takes_the_visibility_only_from_a_row_made_from_the_same_recordi
     assert bench_diagnose._kept_visibility(case, rec, old) is None
 
 
+def _pooled(sets: dict, kind: str, key: str) -> tuple:
+    """(median, max) in percent, rounded to 0.1, of ``kind``'s ``key`` over the four in-sample sets' rows."""
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_diagnose
+
+    err = bench_diagnose.score([r for k in ACC_SETS for r in sets[k][0]])["param_errors"]
+    v = _rel_errors(err, kind, key)
+    return round(float(np.median(v)), 1), round(float(np.max(v)), 1)
+
+
+def _payload_rows_checked(sets: dict, text: str, elastic: int = 12) -> str:
+    """The summary counts over 0-159 (:func:`_assert_summary_counts`, 4 false payloads) and the payload cases 29 and
+    151 (the two outside 5 %) in ``text``; returns ``text`` on one line."""
+    rows = [r for k in ACC_SETS for r in sets[k][0]]
+    flat = _assert_summary_counts(sets, text, 4, [29, 151], elastic=elastic)
+    assert "on the right link 8 of 8 times, its mass within 5 % on 6 of them (cases 29 and 151 are not)" in flat
+    assert _payload_error_pct(rows, 29) == -42 and _payload_error_pct(rows, 151) == -14
+    return flat
+
+
 # --- stop 24: the findings estimated together (the README's figures) ----------------------------------------------
 STOP24_README = DOC[DOC.index("#### The README's summary at stop 24"):DOC.index("### 2026-11-26, stop 23:")]
 
@@ -1086,22 +1108,11 @@ def test_stop24_changes_only_these_cases_on_the_same_recordings(stop24):
 
 
 def test_stop24_confusion_matrix_and_parameter_errors_in_the_readme_are_the_benchmarks(stop24):
-    import numpy as np
-
-    sys.path.insert(0, str(ROOT / "scripts"))
-    import bench_diagnose
-
-    sets = stop24["stop24"][0]
-    rows = [r for k in ACC_SETS for r in sets[k][0]]
-    readme = _assert_summary_counts(sets, STOP24_README, 4, [29, 151])
-    assert "on the right link 8 of 8 times, its mass within 5 % on 6 of them (cases 29 and 151 are not)" in readme
-    assert _payload_error_pct(rows, 29) == -42 and _payload_error_pct(rows, 151) == -14
+    readme = _payload_rows_checked(stop24["stop24"][0], STOP24_README)
     assert "case 29 (-42 %" in readme and "case 151 (-14 %)" in readme
 
     def pooled(tag, kind, key):
-        err = bench_diagnose.score([r for k in ACC_SETS for r in stop24[tag][0][k][0]])["param_errors"]
-        v = _rel_errors(err, kind, key)
-        return round(float(np.median(v)), 1), round(float(np.max(v)), 1)
+        return _pooled(stop24[tag][0], kind, key)
     assert pooled("stop24", "payload_change", "mass") == (0.6, 41.8)
     assert pooled("stop23", "payload_change", "mass") == (3.0, 73.4)
     assert pooled("stop24", "load_dependent_friction", "coefficient") == (0.6, 8.0)
@@ -1146,14 +1157,11 @@ def _stop25_section() -> str:
 def stop25():
     """{tag: (four in-sample sets, 160-199, 200-239, 240-279)} for this release and the stop-24 code, on the same
     recordings."""
-    out = {}
-    for tag in ("stop25", "stop24"):
-        sets = _scored_sets(tag, "2026-11-26")
-        later = tuple(_scored(f"{name}-2026-11-26-{tag}") for name in ("oos", "oos2", "fresh24"))
-        for (rows, _), first in zip(later, (160, 200, 240)):
-            assert [r["seed"] for r in rows] == list(range(first, first + 40))
-        out[tag] = (sets,) + later
-    return out
+    def later(tag):
+        rows_scores = tuple(_scored(f"{name}-2026-11-26-{tag}") for name in ("oos", "oos2", "fresh24"))
+        assert [[r["seed"] for r in rows] for rows, _ in rows_scores] == [list(range(a, a + 40)) for a in (160, 200, 240)]
+        return rows_scores
+    return {tag: (_scored_sets(tag, "2026-11-26"),) + later(tag) for tag in ("stop25", "stop24")}
 
 
 def test_stop25_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(stop25):
@@ -1225,33 +1233,22 @@ def test_stop25_changes_only_these_cases_on_the_same_recordings(stop25):
 
 
 def test_stop25_confusion_matrix_and_parameter_errors_in_the_readme_are_the_benchmarks(stop25):
-    import numpy as np
-
-    sys.path.insert(0, str(ROOT / "scripts"))
-    import bench_diagnose
-
     sets = stop25["stop25"][0]
     rows = [r for k in ACC_SETS for r in sets[k][0]]
-    readme = _assert_summary_counts(sets, README, 4, [29, 151], elastic=14)
-    assert "on the right link 8 of 8 times, its mass within 5 % on 6 of them (cases 29 and 151 are not)" in readme
-    assert _payload_error_pct(rows, 29) == -42 and _payload_error_pct(rows, 151) == -14
+    readme = _payload_rows_checked(sets, README, elastic=14)
+    assert "case 29 (-42 %" in readme and "case 151 (-14 %)" in readme
     # the seven elastic joints still read as plays are shoulders and elbows (gravity-loaded)
     as_play = sorted(r["seed"] for r in rows for e in r["effects"] if e["kind"] == "joint_elasticity"
                      and any(f["kind"] == "backlash" and f["joint"] == e["joints"][0] for f in r["named"]))
     assert as_play == [29, 49, 84, 100, 103, 106, 109]
     assert "(shoulders 29, 49, 100, 103, 109; elbows 84, 106)" in _stop25_section()
 
-    def pooled(tag, kind, key):
-        err = bench_diagnose.score([r for k in ACC_SETS for r in stop25[tag][0][k][0]])["param_errors"]
-        v = _rel_errors(err, kind, key)
-        return round(float(np.median(v)), 1), round(float(np.max(v)), 1)
-    assert pooled("stop25", "payload_change", "mass") == (0.6, 41.8)
-    assert pooled("stop25", "load_dependent_friction", "coefficient") == (0.6, 8.0)
-    assert pooled("stop25", "coupling", "coefficient") == (1.8, 6.4)
-    assert pooled("stop25", "cogging", "amplitude") == (4.0, 26.7)
-    assert pooled("stop24", "cogging", "amplitude") == (4.7, 88.8)
-    assert pooled("stop25", "backlash", "width") == (53.8, 93.1)
-    assert pooled("stop25", "joint_elasticity", "stiffness") == (22.3, 59.1)
+    want = {("stop25", "payload_change", "mass"): (0.6, 41.8),
+            ("stop25", "load_dependent_friction", "coefficient"): (0.6, 8.0),
+            ("stop25", "coupling", "coefficient"): (1.8, 6.4), ("stop25", "cogging", "amplitude"): (4.0, 26.7),
+            ("stop24", "cogging", "amplitude"): (4.7, 88.8), ("stop25", "backlash", "width"): (53.8, 93.1),
+            ("stop25", "joint_elasticity", "stiffness"): (22.3, 59.1)}
+    assert {k: _pooled(stop25[k[0]][0], k[1], k[2]) for k in want} == want
     assert ("payload mass **0.6 %, 42 %**, load-dependent friction's coefficient **0.6 %, 8.0 %**, coupling 1.8 %, "
             "6.4 %, cogging amplitude 4.0 %, 27 % (stop-24 code 4.7 %, 89 %)") in readme
     assert "(median error 54 %, max 93 %)" in readme and "median 22 %, max 59 %" in readme

@@ -281,24 +281,36 @@ def test_a_grid_point_whose_columns_are_not_finite_is_skipped_not_a_traceback(rd
                 assert c.fitted.hyper not in (len(grid) - 1, len(grid) - 2)
 
 
-def test_readme_speed_figures_of_stop_24_are_its_committed_runs():
-    """Stop 24's machine, the stop-23 code and this release in turn (docs/bench/diagnose-speed-2026-11-26-stop24
-    {-before,}.txt): the README's totals, ratios and search seconds are what scripts/bench_diagnose_speed.py printed,
-    and the goal is not met there."""
+def _speed_runs(stop: str) -> dict:
+    """The committed speed runs of a stop, before and after: {"-before" | "": ((CPU s, per 4 minutes, ratio), search
+    CPU s, the file's text)}; each run's goal is not met (ratio above 1)."""
     import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
-    readme = " ".join((root / "README.md").read_text().split())
     got = {}
     for tag in ("-before", ""):
-        out = (root / f"docs/bench/diagnose-speed-2026-11-26-stop24{tag}.txt").read_text()
+        out = (root / f"docs/bench/diagnose-speed-2026-11-26-{stop}{tag}.txt").read_text()
         total = re.search(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", out, flags=re.M)
         search = re.search(r"search \(every candidate, every step\)\s+([\d.]+)", out)
-        got[tag] = (total.groups(), search.group(1))
+        got[tag] = (total.groups(), search.group(1), out)
         assert float(total.group(3)) > 1.0                       # not met on that machine
-    (b_cpu, b_per4, b_x), b_search = got["-before"]
-    (a_cpu, a_per4, a_x), a_search = got[""]
+    return got
+
+
+def _readme_flat() -> str:
+    from pathlib import Path
+
+    return " ".join((Path(__file__).resolve().parent.parent / "README.md").read_text().split())
+
+
+def test_readme_speed_figures_of_stop_24_are_its_committed_runs():
+    """Stop 24's machine, the stop-23 code and this release in turn (docs/bench/diagnose-speed-2026-11-26-stop24
+    {-before,}.txt): the README's totals, ratios and search seconds are what scripts/bench_diagnose_speed.py printed,
+    and the goal is not met there."""
+    readme, got = _readme_flat(), _speed_runs("stop24")
+    (b_cpu, b_per4, b_x), b_search, _ = got["-before"]
+    (a_cpu, a_per4, a_x), a_search, _ = got[""]
     assert f"the stop-23 code **{b_cpu} CPU s, per 4 minutes {b_per4} ({b_x}x the goal)**" in readme
     assert f"this release **{a_cpu} CPU s, per 4 minutes {a_per4} ({a_x}x)**" in readme
     assert f"costs about 2 CPU s of the search ({b_search} -> {a_search} s)" in readme
@@ -309,18 +321,7 @@ def test_readme_speed_figures_of_stop_25_are_its_committed_runs():
     """Stop 25: the stop-24 code and this release in turn, with ``--per-kind`` (docs/bench/diagnose-speed-2026-11-26-
     stop25{-before,}.txt): the README's totals, ratios and search seconds are what scripts/bench_diagnose_speed.py
     printed, the goal is not met, and the per-kind table has this release's two new readings' kinds."""
-    import re
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parent.parent
-    readme = " ".join((root / "README.md").read_text().split())
-    got = {}
-    for tag in ("-before", ""):
-        out = (root / f"docs/bench/diagnose-speed-2026-11-26-stop25{tag}.txt").read_text()
-        total = re.search(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", out, flags=re.M)
-        search = re.search(r"search \(every candidate, every step\)\s+([\d.]+)", out)
-        got[tag] = (total.groups(), search.group(1), out)
-        assert float(total.group(3)) > 1.0                       # not met on this machine
+    readme, got = _readme_flat(), _speed_runs("stop25")
     (b_cpu, b_per4, b_x), b_search, b_out = got["-before"]
     (a_cpu, a_per4, a_x), a_search, a_out = got[""]
     assert (f"**Stop 25, this release: {a_cpu} CPU s, per 4 minutes {a_per4} ({a_x}x the goal); the stop-24 code in "
