@@ -1574,19 +1574,19 @@ class BacklashRattle(Term):
         alpha = float(coef[0])
         width, f_osc = self.oscillation(rd, j)
         free, g_rms, swing_torque = self.free_link(rd, j)
-        if free and alpha - 3 * float(std[0]) > self.ALPHA_FREE:
-            return ({"kind": self.kind, "joints": [j], "width": width, "stiffness": 0.0, "damping": 0.0},
-                    f"joint {rd.joints[j]}'s gear oscillates above the torque band ({width:.3g} rad peak to peak at "
-                    f"{f_osc:.3g} Hz) and the motors miss {alpha:.0%} of the link's torque for it", False,
-                    f"the motors miss {alpha:.2f} of the link's fast torque, more than a free link's 1 (no gravity "
-                    f"holds this link on a flank: {g_rms:.2g} N*m against the swing's {swing_torque:.2g} N*m): a "
-                    "spring, not a gap, lets it lag (joint_elasticity)")
         # the contact is not resolved: its stiffness taken as the one that puts the link's resonance on it at the
         # oscillation's frequency (the limit cycle rings the contact), damping 0.3 of critical (BacklashOnFlank's)
         f_band = float(rd.signals.settings.fc_acceleration_hz)
         m_typ = _typical_inertia(rd, j)
         k = float(m_typ * (2 * np.pi * f_osc) ** 2)
         d = float(2 * 0.3 * np.sqrt(k * m_typ))
+        if free and alpha - 3 * float(std[0]) > self.ALPHA_FREE:
+            return ({"kind": self.kind, "joints": [j], "width": width, "stiffness": k, "damping": d},
+                    f"joint {rd.joints[j]}'s gear oscillates above the torque band ({width:.3g} rad peak to peak at "
+                    f"{f_osc:.3g} Hz) and the motors miss {alpha:.0%} of the link's torque for it", False,
+                    f"the motors miss {alpha:.2f} of the link's fast torque, more than a free link's 1 (no gravity "
+                    f"holds this link on a flank: {g_rms:.2g} N*m against the swing's {swing_torque:.2g} N*m): a "
+                    "spring, not a gap, lets it lag (joint_elasticity)")
         swings = width >= self.MIN_SWING and f_osc >= 2 * f_band
         lo, hi = self.ALPHA_RANGE
         ok = alpha > 3 * std[0] and lo < alpha < hi and swings and width < 0.2
@@ -1650,7 +1650,9 @@ class ElasticRattle(BacklashRattle):
         m_typ = _typical_inertia(rd, j)
         hi = self.ALPHA_RANGE[1]
         k = self.stiffness(rd, j, alpha) if alpha > 1 and np.isfinite(f_osc) else 0.0
-        f_nat = float(np.sqrt(k / m_typ) / (2 * np.pi)) if k > 0 else 0.0
+        if not k > 0:        # no spring read (a free link's share, or no oscillation): the reading is refused
+            k = float(m_typ * (2 * np.pi * 2 * f_band) ** 2)     # and carries a valid stiffness, resonance at 2x band
+        f_nat = float(np.sqrt(k / m_typ) / (2 * np.pi))
         swings = width >= self.MIN_SWING and f_osc >= 2 * f_band
         above = alpha - 3 * float(std[0]) > self.ALPHA_FREE
         ok = free and swings and above and alpha < hi
