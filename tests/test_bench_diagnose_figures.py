@@ -1223,6 +1223,19 @@ def test_stop25_changes_only_these_cases_on_the_same_recordings(stop25):
     assert changed[176] == ([("cogging", 4), ("coupling", 1), ("torque_offset", 5)],
                             [("cogging", 4), ("payload_change", 2), ("torque_offset", 2)])
     assert set(changed) == elastic_base | set(ripples) | {57, 145, 176, 270}
+
+    this = stop25["stop25"]
+    by_seed = {r["seed"]: r for r in [r for k in ACC_SETS for r in this[0][k][0]] + [r for x in this[1:] for r in x[0]]}
+
+    def rel(seed, kind, key):                        # the newly named reading against the truth, percent
+        row = by_seed[seed]
+        true = next(e for e in row["effects"] if e["kind"] == kind)
+        found = next(f for f in row["named"] if f["kind"] == kind and f["joint"] == true["joints"][0])
+        return 100 * (found["effect"][key] / true[key] - 1)
+    stiff = [rel(seed, "joint_elasticity", "stiffness") for seed in elastic_base]
+    assert round(min(abs(v) for v in stiff)) == 4 and round(max(abs(v) for v in stiff)) == 34
+    amp = [rel(seed, "cogging", "amplitude") for seed in ripples]
+    assert all(v < 0 for v in amp) and round(min(-v for v in amp)) == 16 and round(max(-v for v in amp)) == 33
     section = _stop25_section()
     assert "Named right now: **56, 97, 166, 181, 217, 250, 262, 277**; no base-axis play is lost." in section
     assert "Named now: **182, 209, 227, 254, 272** (and 194, with a false play beside it)." in section
@@ -1230,6 +1243,9 @@ def test_stop25_changes_only_these_cases_on_the_same_recordings(stop25):
     assert "(cases 56, 97, 166, 181, 217, 250, 262, 277), no play is lost" in readme
     assert "6 more cogging ripples named (182, 194, 209, 227, 254, 272)" in readme
     assert "Case 176 loses its coupling" in readme
+    assert "(the stiffness read from the limit cycle: 4-34 % off)" in readme
+    assert "A cogging amplitude read in the pass band is 16-33 % low (the six ripples it newly names)" in readme
+    assert "(4-34 % from the truth on the 8 axes; fresh case 298: -16 %)" in section
 
 
 def test_stop25_confusion_matrix_and_parameter_errors_in_the_readme_are_the_benchmarks(stop25):
@@ -1266,6 +1282,10 @@ def test_stop25_fresh_cases_drawn_after_the_change_in_the_readme_and_docs_are_th
             for x, y in zip(before, rows) if sorted((f["kind"], f["joint"]) for f in x["named"]) !=
             sorted((f["kind"], f["joint"]) for f in y["named"])}
     assert diff == {298: ([("backlash", 0)], [("joint_elasticity", 0)])}
+    case = next(r for r in rows if r["seed"] == 298)
+    k_true = next(e["stiffness"] for e in case["effects"] if e["kind"] == "joint_elasticity")
+    k_found = next(f["effect"]["stiffness"] for f in case["named"] if f["kind"] == "joint_elasticity")
+    assert round(100 * (k_found / k_true - 1)) == -16
     kinds = {k: (s["confusion"][k][k], sum(s["confusion"][k].values()))
              for k in ("cogging", "backlash", "joint_elasticity", "coupling")}
     assert kinds == {"cogging": (12, 13), "backlash": (9, 10), "joint_elasticity": (5, 10), "coupling": (2, 4)}
