@@ -585,19 +585,21 @@ class CoggingPassBand(CoggingWide):
     PASS_HZ = (12.0, 25.0, 50.0)
     MIN_ROWS = 50       # fit rows under the pass band, turning either way, a reading needs
 
+    @staticmethod
+    def top_speed(h) -> float:
+        """rad/s at the motor: the fastest a motor may turn for grid point h = (p, f_pass) to read a row (ripple
+        frequency p |w| / 2 pi at most f_pass). The one rule the grid, the columns and the normal equations use."""
+        return 2 * np.pi * float(h[1]) / int(h[0])
+
     def grid(self, rd, j):
         periods = super().grid(rd, j)
         w = np.abs(_moving(rd, j))[rd.fit_rows]
         return [(p, f) for p in periods for f in self.PASS_HZ
-                if int(np.count_nonzero((w > 0) & (p * w <= 2 * np.pi * f))) >= self.MIN_ROWS]
-
-    def _passing(self, rd, j, h) -> np.ndarray:
-        p, f = h
-        return (int(p) * np.abs(_moving(rd, j)) <= 2 * np.pi * float(f)).astype(float)
+                if int(np.count_nonzero((w > 0) & (w <= self.top_speed((p, f))))) >= self.MIN_ROWS]
 
     def columns(self, rd, j, h):
         col = Cogging.columns.__wrapped__(self, rd, j, int(h[0]))
-        col[:, j, :] *= self._passing(rd, j, h)[:, None]
+        col[:, j, :] *= (np.abs(_moving(rd, j)) <= self.top_speed(h))[:, None]
         return col
 
     def grid_columns(self, rd, j, grid, rows):
@@ -614,11 +616,11 @@ class CoggingPassBand(CoggingWide):
         bwd, fwd = (1 - fwd) * sliding, fwd * sliding
         trig = {}
         for h in grid:
-            p, f = int(h[0]), float(h[1])
+            p = int(h[0])
             if p not in trig:
                 trig = {p: (np.sin(p * th), np.cos(p * th))}      # grid order: the pass bands of one p in a row
             s, c = trig[p]
-            passing = (p * w <= 2 * np.pi * f).astype(float)
+            passing = (w <= self.top_speed(h)).astype(float)
             X = np.empty((len(th), 4))
             X[:, 0], X[:, 1] = s * fwd * passing, c * fwd * passing
             X[:, 2], X[:, 3] = s * bwd * passing, c * bwd * passing
@@ -652,7 +654,7 @@ class CoggingPassBand(CoggingWide):
                 while i < len(grid_) and int(grid_[i][0]) == p:
                     bands.append(grid_[i])
                     i += 1
-                ends = [int(np.searchsorted(speed, 2 * np.pi * float(h[1]) / p, side="right")) for h in bands]
+                ends = [int(np.searchsorted(speed, self.top_speed(h), side="right")) for h in bands]
                 n = max(ends)
                 if n == 0:
                     continue
@@ -1062,6 +1064,12 @@ def _gravity_joint(rd: ResidualData, samples: int = 2000) -> np.ndarray:
     return g
 
 
+def _stiffness_at_twice_band(rd: ResidualData, j: int) -> float:
+    """N*m/rad: the spring that puts joint j's link resonance (typical inertia) at twice the torque band, the value a
+    reading reports for a contact or spring it does not resolve (its compliance would show in the band below that)."""
+    return float(_typical_inertia(rd, j) * (2 * np.pi * 2 * float(rd.signals.settings.fc_acceleration_hz)) ** 2)
+
+
 # --- transmission compliance: the link simulated behind the measured gear motion ------------------------------------
 GAP_WIDTHS = (0.005, 0.01, 0.02, 0.04, 0.08)           # rad joint side
 NATURAL_HZ = (3.0, 6.0, 12.0, 24.0)                     # link-on-spring natural frequency grid
@@ -1444,8 +1452,7 @@ class BacklashOnStiffFlank(BacklashOnFlank):
         return col
 
     def effect(self, rd, j, h, coef, std):
-        m_typ = _typical_inertia(rd, j)
-        k = float(m_typ * (2 * np.pi * 2 * float(rd.signals.settings.fc_acceleration_hz)) ** 2)
+        k = _stiffness_at_twice_band(rd, j)
         effect, summary, ok, why = super().effect(rd, j, h, np.array([coef[0], 1.0 / k]), np.array([std[0], 0.0]))
         summary = summary.replace("contact stiffness", "contact stiffness not resolved (taken as").replace(
             " N*m/rad (damping", " N*m/rad, its resonance at twice the torque band; damping", 1)
@@ -1570,24 +1577,31 @@ class BacklashRattle(Term):
             cache[j] = (g_rms <= BacklashRattle.FREE_GRAVITY * swing_torque, g_rms, swing_torque)
         return cache[j]
 
-    def effect(self, rd, j, h, coef, std):
+    def _readout(self, rd, j, coef, std) -> tuple:
+        """What both rattle readings decide on: (alpha, width, f_osc, (free, gravity RMS, swing torque), f_band,
+        M_jj typical, swings: the gear oscillates above the band (``MIN_SWING``, twice the band), spring: alpha
+        significantly above a free link's 1 (``ALPHA_FREE``)). The play's reading refuses what the spring's names."""
         alpha = float(coef[0])
         width, f_osc = self.oscillation(rd, j)
-        free, g_rms, swing_torque = self.free_link(rd, j)
+        f_band = float(rd.signals.settings.fc_acceleration_hz)
+        swings = width >= self.MIN_SWING and f_osc >= 2 * f_band
+        spring = alpha - 3 * float(std[0]) > self.ALPHA_FREE
+        return alpha, width, f_osc, self.free_link(rd, j), f_band, _typical_inertia(rd, j), swings, spring
+
+    def effect(self, rd, j, h, coef, std):
+        alpha, width, f_osc, (free, g_rms, swing_torque), f_band, m_typ, swings, spring = \
+            self._readout(rd, j, coef, std)
         # the contact is not resolved: its stiffness taken as the one that puts the link's resonance on it at the
         # oscillation's frequency (the limit cycle rings the contact), damping 0.3 of critical (BacklashOnFlank's)
-        f_band = float(rd.signals.settings.fc_acceleration_hz)
-        m_typ = _typical_inertia(rd, j)
         k = float(m_typ * (2 * np.pi * f_osc) ** 2)
         d = float(2 * 0.3 * np.sqrt(k * m_typ))
-        if free and alpha - 3 * float(std[0]) > self.ALPHA_FREE:
+        if free and spring:
             return ({"kind": self.kind, "joints": [j], "width": width, "stiffness": k, "damping": d},
                     f"joint {rd.joints[j]}'s gear oscillates above the torque band ({width:.3g} rad peak to peak at "
                     f"{f_osc:.3g} Hz) and the motors miss {alpha:.0%} of the link's torque for it", False,
                     f"the motors miss {alpha:.2f} of the link's fast torque, more than a free link's 1 (no gravity "
                     f"holds this link on a flank: {g_rms:.2g} N*m against the swing's {swing_torque:.2g} N*m): a "
                     "spring, not a gap, lets it lag (joint_elasticity)")
-        swings = width >= self.MIN_SWING and f_osc >= 2 * f_band
         lo, hi = self.ALPHA_RANGE
         ok = alpha > 3 * std[0] and lo < alpha < hi and swings and width < 0.2
         why = ("" if ok else "share of the link's torque missing not significant" if not alpha > 3 * std[0] else
@@ -1644,18 +1658,13 @@ class ElasticRattle(BacklashRattle):
         return float(brentq(excess, 0.0, k_max)) if excess(k_max) > 0 else k_max
 
     def effect(self, rd, j, h, coef, std):
-        alpha = float(coef[0])
-        width, f_osc = self.oscillation(rd, j)
-        free, g_rms, swing_torque = self.free_link(rd, j)
-        f_band = float(rd.signals.settings.fc_acceleration_hz)
-        m_typ = _typical_inertia(rd, j)
+        alpha, width, f_osc, (free, g_rms, swing_torque), f_band, m_typ, swings, above = \
+            self._readout(rd, j, coef, std)
         hi = self.ALPHA_RANGE[1]
         k = self.stiffness(rd, j, alpha) if alpha > 1 and np.isfinite(f_osc) else 0.0
         if not k > 0:        # no spring read (a free link's share, or no oscillation): the reading is refused
-            k = float(m_typ * (2 * np.pi * 2 * f_band) ** 2)     # and carries a valid stiffness, resonance at 2x band
+            k = _stiffness_at_twice_band(rd, j)                  # and carries a valid stiffness
         f_nat = float(np.sqrt(k / m_typ) / (2 * np.pi))
-        swings = width >= self.MIN_SWING and f_osc >= 2 * f_band
-        above = alpha - 3 * float(std[0]) > self.ALPHA_FREE
         ok = free and swings and above and alpha < hi
         why = ("" if ok else
                f"gravity holds this link on a flank ({g_rms:.2g} N*m against the swing's {swing_torque:.2g} N*m): "
