@@ -383,10 +383,11 @@ class TorqueOffset(Term):
         shoulder plays the joint and the elbow it shakes carried a constant 0.006-0.011 and 0.003-0.004 N*m
         (motors 2 and 3), named as two torque offsets beside the play in 9 of 12 such cases (the clean cases: none).
         Each of those motors' gears swung at the cycle's frequency (within 2 %)."""
-        f_j = BacklashRattle.oscillation(rd, j)[1]
-        for a in accepted:
-            if not isinstance(a.term, BacklashRattle) or not np.isfinite(f_j):
-                continue
+        rattles = [a for a in accepted if isinstance(a.term, BacklashRattle)]
+        f_j = BacklashRattle.oscillation(rd, j)[1] if rattles else float("nan")
+        for a in rattles:
+            if not np.isfinite(f_j):
+                break
             f_a = BacklashRattle.oscillation(rd, a.fitted.joint)[1]
             if np.isfinite(f_a) and abs(f_j - f_a) <= BacklashRattle.SAME_CYCLE * f_a:
                 return (f"its gear swings at {f_j:.3g} Hz, in the limit cycle of the {a.fitted.kind} found on "

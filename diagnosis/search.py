@@ -628,7 +628,7 @@ class MismatchSearch:
             k, swing, p, m0, m1 = worst
             keep.remove(k)
             out.append((order[k], f"dropped after the search: fitted together with the payload on "
-                        f"{rd.arm.links[order[p].fitted.joint] if hasattr(rd.arm, 'links') else order[p].fitted.joint}"
+                        f"{_link_name(rd, order[p].fitted.joint)}"
                         f", it moves that mass from {m0:.3g} to {m1:.3g} kg ({swing:+.0%}): on this motion a constant "
                         "torque and the payload's weight are one reading, and the payload explains every motor"))
         return out
@@ -751,3 +751,9 @@ class MismatchSearch:
             s0 += float(np.sum((r0 * w)[mb] ** 2))
             s1 += float(np.sum(((r0 - self.corrections_[b]) * w)[mb] ** 2))
         return 1.0 - s1 / s0 if s0 > 0 else 0.0
+
+
+def _link_name(rd, j: int) -> str:
+    """The name of the link moved by joint j (the arm's, when the recording's data carry it)."""
+    links = getattr(getattr(rd, "arm", None), "links", None)
+    return links[j] if links is not None else f"link {j + 1}"

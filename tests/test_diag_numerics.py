@@ -726,3 +726,113 @@ def test_joint_normal_equations_match_a_direct_least_squares_on_every_subset_and
     assert list(eq.index([2, 0])) == [3, 4, 5, 0, 1] and len(eq.index([])) == 0
     np.testing.assert_allclose(eq.sse("fit_rows", eq.index([]), np.array([])),
                                (np.where(masks["fit_rows"], b, 0.0) ** 2).sum(axis=0), rtol=1e-12)
+
+
+def _payload_and_offset(x_elbow, residual, N):
+    """A search as the ladder leaves it with a 'payload' (columns ``x``: motor 1's torque per kg varies, motor 2's
+    is ``x_elbow``) and a torque offset on motor 2 accepted, on ``residual``; fit / select / report rows in thirds."""
+    from diagnosis.library import Fitted, Term, TorqueOffset
+    from diagnosis.search import MismatchSearch, Scored
+
+    t = np.arange(N) / 500.0
+    x = np.stack([np.sin(2 * np.pi * 0.3 * t), x_elbow], axis=1)
+    rows = np.zeros(N, int)
+    rows[N // 3:2 * N // 3], rows[2 * N // 3:] = 1, 2
+    rd = SimpleNamespace(n=2, t=t, fs=500.0, extra={}, mask=np.ones((N, 2), bool), fit_rows=rows == 0,
+                         select_rows=rows == 1, holdout_rows=rows == 2, torque_step_motor=None, lowpass=lambda X: X,
+                         arm=SimpleNamespace(links=["link1", "link2"]))
+
+    class Mass(Term):
+        kind, changes_load = "payload_change", True
+
+        def motors(self, rd, j):
+            return np.arange(2)
+
+        def columns(self, rd, j, h):
+            return x[:, :, None].copy()
+
+        def effect(self, rd, j, h, coef, std):
+            return {"kind": self.kind, "joints": [j], "mass": float(coef[0])}, f"{coef[0]:.3g} kg", True, ""
+
+    search = MismatchSearch()
+    res = {"low": residual(x).copy(), "wide": residual(x).copy()}
+    search.accepted_, search.references_, search._order, search.dropped_ = [], [], [], []
+    search.corrections_ = {"low": np.zeros((N, 2)), "wide": np.zeros((N, 2))}
+    search._masks = None
+    for term, j, c in ((Mass(), 1, 0.3), (TorqueOffset(), 1, 0.05)):
+        f = Fitted(kind=term.kind, joint=j, hyper=None, coef=np.array([c]), coef_std=np.zeros(1), effect={},
+                   summary="", plausible=True)
+        s = Scored(fitted=f, fit_gain=0.5, select_gain=0.5, select_gain_all=0.5, holdout_gain=0.5,
+                   rms_before=np.ones(2), rms_after=np.ones(2), band="low", term=term)
+        search.accepted_.append(s)
+        search._order.append(s)
+        for band in res:
+            res[band] -= term.columns(rd, j, None)[:, :, 0] * c
+            search.corrections_[band] += term.columns(rd, j, None)[:, :, 0] * c
+    search._joint_refit(rd, res, {"low": np.ones(2), "wide": np.ones(2)})
+    return search
+
+
+def test_an_offset_that_moves_the_payloads_mass_is_dropped_and_one_that_does_not_is_kept():
+    """MismatchSearch._drop_confounded (bench case 151: offsets named on motors 2 and 3 beside 0.197 kg on the hand
+    read it as 0.169 kg; without them 0.193). Where the payload's torque on motor 2 hardly varies, a constant there
+    and the payload's weight are one reading: a shoulder that reads less mass (motor 1 carries 0.34 of the 0.4 kg's
+    torque) pulls the mass down as far as the offset takes up motor 2's share. The offset goes and the mass is the
+    compromise of both motors. Where motor 2's payload torque varies, a real offset there (0.03) hardly moves the
+    mass: it stays, beside the mass it does not bias."""
+    N = 6000
+    rng = np.random.default_rng(5)
+    t = np.arange(N) / 500.0
+    flat = 1.0 + 0.05 * np.sin(2 * np.pi * 0.2 * t)
+    search = _payload_and_offset(flat, lambda x: np.stack([0.34 * x[:, 0], 0.4 * x[:, 1]], axis=1)
+                                 + rng.normal(0, 2e-4, (N, 2)), N)
+    assert [s.fitted.kind for s in search.accepted_] == ["payload_change"]
+    (gone, why), = search.dropped_
+    assert gone.fitted.kind == "torque_offset" and "link2" in why and "one reading" in why
+    m = search.accepted_[0].fitted.coef[0]
+    assert 0.37 < m < 0.39                                  # (0.34 * 0.5 + 0.4 * 1.0) / 1.5: both motors' weights
+    varied = np.sin(2 * np.pi * 0.2 * t) + 0.3
+    search = _payload_and_offset(varied, lambda x: 0.4 * x + np.stack([np.zeros(N), np.full(N, 0.03)], axis=1)
+                                 + rng.normal(0, 2e-4, (N, 2)), N)
+    assert [s.fitted.kind for s in search.accepted_] == ["payload_change", "torque_offset"] and not search.dropped_
+    assert search.accepted_[0].fitted.coef[0] == pytest.approx(0.4, abs=0.002)
+    assert search.accepted_[1].fitted.coef[0] == pytest.approx(0.03, abs=0.002)
+
+
+def test_an_offset_on_a_gear_swinging_in_an_accepted_limit_cycle_is_reported_as_its_mean():
+    """TorqueOffset.resolve with the terms accepted before it: an offset on a motor whose gear swings at an accepted
+    rattle's frequency (within SAME_CYCLE) is the cycle's mean, the reference CycleOffset (unexplained, not named;
+    bench: two offsets on motors 2 and 3 beside 9 of 12 250 Hz shoulder plays); one on a gear swinging at its own
+    frequency, or with no rattle accepted, stays a torque offset."""
+    from scipy.signal import butter, sosfiltfilt
+
+    from diagnosis.library import BacklashRattle, CycleOffset, Fitted, PayloadChange, TorqueOffset
+    from diagnosis.search import Scored
+
+    fs, n = 250.0, 3
+    t = np.arange(0, 20, 1 / fs)
+    sos = butter(4, 7.0, fs=fs, output="sos")
+    q = np.stack([0.3 * np.sin(0.5 * t) + 0.004 * np.sin(2 * np.pi * 24.9 * t),      # the play's joint
+                  0.2 * np.sin(0.4 * t) + 0.003 * np.sin(2 * np.pi * 25.4 * t),      # shaken in the same cycle
+                  0.1 * np.sin(0.3 * t) + 0.003 * np.sin(2 * np.pi * 37.0 * t)], axis=1)   # its own oscillation
+    rd = SimpleNamespace(K=np.eye(n), q_motor=q, fs=fs, mask=np.ones((len(t), n), dtype=bool),
+                         lowpass=lambda x: sosfiltfilt(sos, x, axis=0), joints=["j1", "j2", "j3"],
+                         signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=7.0)), extra={})
+
+    def scored(term, kind, j):
+        fit = Fitted(kind=kind, joint=j, hyper=None, coef=np.array([0.009]), coef_std=np.array([1e-4]),
+                     effect={}, summary="", plausible=True, why_not="")
+        return Scored(fitted=fit, fit_gain=0.5, select_gain=0.5, select_gain_all=0.05, holdout_gain=0.5,
+                      rms_before=np.ones(n), rms_after=np.ones(n), band="low", term=term)
+
+    rattle, payload = scored(BacklashRattle(), "backlash", 0), scored(PayloadChange(), "payload_change", 2)
+    term = TorqueOffset()
+    for j in (0, 1):
+        got = term.resolve(rd, scored(term, "torque_offset", j), [], accepted=[payload, rattle])
+        assert isinstance(got.term, CycleOffset) and got.term.reference
+        assert "limit cycle of the backlash found on j1" in got.note
+    own = scored(term, "torque_offset", 2)
+    assert term.resolve(rd, own, [], accepted=[rattle]) is own
+    shaken = scored(term, "torque_offset", 1)
+    assert term.resolve(rd, shaken, [], accepted=[payload]) is shaken
+    assert term.resolve(rd, shaken, []) is shaken
