@@ -836,3 +836,53 @@ def test_an_offset_on_a_gear_swinging_in_an_accepted_limit_cycle_is_reported_as_
     shaken = scored(term, "torque_offset", 1)
     assert term.resolve(rd, shaken, [], accepted=[payload]) is shaken
     assert term.resolve(rd, shaken, []) is shaken
+
+
+def test_a_rattle_on_a_loaded_joint_is_a_spring_where_the_link_lags_under_its_load():
+    """BacklashRattle.resolve: on a joint gravity holds on a flank, a play's limit cycle and a spring's look alike;
+    where the first-order spring (JointElasticity, torque band) takes at least SPRING_SHARE of the motor's select
+    residual and passes every test, the spring is named (LoadedElasticity, its lag bounded at 0.15 rad, not 0.05)
+    in place of the play; under that share, on a free link, or where the spring fails a test, the play stays. A
+    rattle on that joint, or on one swinging in the same cycle, is then not named again."""
+    from diagnosis.library import BacklashRattle, Fitted, JointElasticity, LoadedElasticity
+    from diagnosis.search import Scored
+
+    N, n = 400, 3
+    rd = SimpleNamespace(tau_rigid_joint=np.tile([60.0, 50.0], N // 2)[:, None] * np.ones((1, n)),
+                         mask=np.ones((N, n), bool), extra={"M": np.tile(0.5 * np.eye(n), (N, 1, 1)),
+                                                           "rattle_oscillation": {0: (0.01, 24.9), 1: (0.004, 25.1),
+                                                                                  2: (0.003, 37.0)},
+                                                           "rattle_free_link": {0: (False, 13.0, 90.0),
+                                                                                2: (True, 0.1, 5.0)}},
+                         joints=["j1", "j2", "j3"], signals=SimpleNamespace(settings=SimpleNamespace(
+                             fc_acceleration_hz=7.0)))
+
+    def scored(term, j, coef, select_gain, kind):
+        eff, summary, ok, why = term.effect(rd, j, None, np.array([coef]), np.array([coef / 100]))
+        fit = Fitted(kind=kind, joint=j, hyper=None, coef=np.array([coef]), coef_std=np.array([coef / 100]),
+                     effect=eff, summary=summary, plausible=bool(ok), why_not=why)
+        return Scored(fitted=fit, fit_gain=select_gain, select_gain=select_gain, select_gain_all=0.3,
+                      holdout_gain=0.5, rms_before=np.ones(n), rms_after=np.ones(n), band="low", term=term)
+
+    rattle = scored(JointElasticity(), 0, 1.0, 0.9, "backlash")      # only its joint and term matter here
+    rattle.term = BacklashRattle()
+    passes = lambda s: s.fitted.plausible and s.select_gain >= 0.12     # noqa: E731 (the search's acceptable)
+    spring = scored(JointElasticity(), 0, 1 / 1000.0, 0.55, "joint_elasticity")   # lags 0.06 rad under 60 N*m
+    assert not spring.fitted.plausible                                # over JointElasticity's 0.05 rad
+    got = BacklashRattle().resolve(rd, rattle, [rattle, spring], passes)
+    assert isinstance(got.term, LoadedElasticity) and got.fitted.plausible and got.fitted.kind == "joint_elasticity"
+    assert got.fitted.effect["stiffness"] == pytest.approx(1000.0) and "lag under its load" in got.note
+    weak = scored(JointElasticity(), 0, 1 / 1000.0, 0.18, "joint_elasticity")      # under SPRING_SHARE
+    assert BacklashRattle().resolve(rd, rattle, [rattle, weak], passes) is rattle
+    soft = scored(JointElasticity(), 0, 1 / 300.0, 0.55, "joint_elasticity")       # 0.2 rad: past even 0.15
+    assert BacklashRattle().resolve(rd, rattle, [rattle, soft], passes) is rattle
+    free = scored(JointElasticity(), 2, 1.0, 0.9, "backlash")
+    free.term = BacklashRattle()
+    assert BacklashRattle().resolve(rd, free, [free, scored(JointElasticity(), 2, 1 / 1000.0, 0.55,
+                                                            "joint_elasticity")], passes) is free
+    # the spring owns the cycle: no play on its joint, nor on one swinging with it; one at its own frequency may be
+    again = scored(JointElasticity(), 0, 1.0, 0.9, "backlash")
+    assert "rings in the loop's limit cycle" in BacklashRattle().already_found(rd, again, [got])
+    shaken = scored(JointElasticity(), 1, 1.0, 0.9, "backlash")
+    assert "the same limit cycle" in BacklashRattle().already_found(rd, shaken, [got])
+    assert BacklashRattle().already_found(rd, free, [got]) == ""
