@@ -379,10 +379,11 @@ class TorqueOffset(Term):
     def _in_cycle(rd, j: int, accepted) -> str:
         """Why motor j's constant torque belongs to the limit cycle of a rattle in ``accepted`` (empty: it does
         not). A loop oscillating across a play (or against a spring, through the friction's sign) is a nonlinear
-        oscillation, and such an oscillation has a mean (the describing function's bias): on the benchmark's 250 Hz
-        shoulder plays the joint and the elbow it shakes carried a constant 0.006-0.011 and 0.003-0.004 N*m
-        (motors 2 and 3), named as two torque offsets beside the play in 9 of 12 such cases (the clean cases: none).
-        Each of those motors' gears swung at the cycle's frequency (within 2 %)."""
+        oscillation, and such an oscillation has a mean (the describing function's bias): beside the benchmark's
+        250 Hz shoulder and elbow rattles the joint and the one it shakes carried a constant 0.003-0.011 N*m
+        (motor 2) and 0.002-0.004 N*m (motor 3), named as torque offsets in 9 cases (20, 49, 117, 120, 135, 147,
+        199, 282, 318; on the clean cases none). Each of those motors' gears swung at the cycle's frequency (within
+        2 %)."""
         rattles = [a for a in accepted if _rings(a)]
         f_j = BacklashRattle.oscillation(rd, j)[1] if rattles else float("nan")
         for a in rattles:
