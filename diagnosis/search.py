@@ -629,7 +629,7 @@ class MismatchSearch:
             keep.remove(k)
             out.append((order[k], f"dropped after the search: fitted together with the payload on "
                         f"{_link_name(rd, order[p].fitted.joint)}"
-                        f", it moves that mass from {m0:.3g} to {m1:.3g} kg ({m1 / m0 - 1:+.0%}): on this motion a constant "
+                        f", it moves that mass from {m0:.3g} to {m1:.3g} kg ({(m1 - m0) / max(abs(m0), 1e-12):+.0%}): on this motion a constant "
                         "torque and the payload's weight are one reading, and the payload explains every motor"))
         return out
 
