@@ -627,10 +627,11 @@ class MismatchSearch:
                 break
             k, swing, p, m0, m1 = worst
             keep.remove(k)
+            change = (m1 - m0) / max(abs(m0), 1e-12)
             out.append((order[k], f"dropped after the search: fitted together with the payload on "
-                        f"{_link_name(rd, order[p].fitted.joint)}"
-                        f", it moves that mass from {m0:.3g} to {m1:.3g} kg ({(m1 - m0) / max(abs(m0), 1e-12):+.0%}): on this motion a constant "
-                        "torque and the payload's weight are one reading, and the payload explains every motor"))
+                        f"{_link_name(rd, order[p].fitted.joint)}, it moves that mass from {m0:.3g} to {m1:.3g} kg "
+                        f"({change:+.0%}): on this motion a constant torque and the payload's weight are one reading, "
+                        "and the payload explains every motor"))
         return out
 
     def _sequential_gains(self, rd, eq, order: list, keep: list, ix: np.ndarray, coef: np.ndarray,
