@@ -257,24 +257,31 @@ def test_a_torque_offset_under_half_a_count_of_the_current_read_back_is_not_name
     assert search._why_rejected(scored(Stribeck(), 2.0)) == ""
 
 
+def _cycling_gears(f_play, f_shaken, a_shaken, fs=250.0, seconds=20.0):
+    """Fake ResidualData of three gears at ``fs``: joint 1's in a limit cycle at ``f_play`` (4 mrad), joint 2's
+    shaken at ``f_shaken`` (``a_shaken`` rad), joint 3's oscillating on its own at 37 Hz (3 mrad), each over a slow
+    motion; the 7 Hz torque band's low-pass (scipy's zero-phase Butterworth)."""
+    from scipy.signal import butter, sosfiltfilt
+
+    t = np.arange(0, seconds, 1 / fs)
+    sos = butter(4, 7.0, fs=fs, output="sos")
+    q = np.stack([0.3 * np.sin(0.5 * t) + 0.004 * np.sin(2 * np.pi * f_play * t),
+                  0.2 * np.sin(0.4 * t) + a_shaken * np.sin(2 * np.pi * f_shaken * t),
+                  0.1 * np.sin(0.3 * t) + 0.003 * np.sin(2 * np.pi * 37.0 * t)], axis=1)
+    return SimpleNamespace(K=np.eye(3), q_motor=q, fs=fs, mask=np.ones((len(t), 3), dtype=bool),
+                           lowpass=lambda x: sosfiltfilt(sos, x, axis=0), joints=["j1", "j2", "j3"],
+                           signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=7.0)), extra={})
+
+
 def test_one_limit_cycle_is_one_play():
     """BacklashRattle.already_found: a second joint whose gear oscillates within SAME_CYCLE of an accepted rattle's
     frequency swings in the same limit cycle (bench cases 103, 106: 25.6 / 25.6 Hz and 22.9 / 22.5 Hz, the second
     named a false play); a second joint swinging at its own frequency is not held back."""
-    from scipy.signal import butter, sosfiltfilt
-
     from diagnosis.library import BacklashRattle, Fitted
     from diagnosis.search import Scored
 
-    fs, n = 250.0, 3
-    t = np.arange(0, 20, 1 / fs)
-    sos = butter(4, 7.0, fs=fs, output="sos")
-    q = np.stack([0.3 * np.sin(0.5 * t) + 0.004 * np.sin(2 * np.pi * 25.6 * t),      # the play's joint
-                  0.2 * np.sin(0.4 * t) + 0.002 * np.sin(2 * np.pi * 25.6 * t),      # shaken in the same cycle
-                  0.1 * np.sin(0.3 * t) + 0.003 * np.sin(2 * np.pi * 37.0 * t)], axis=1)   # its own oscillation
-    rd = SimpleNamespace(K=np.eye(n), q_motor=q, fs=fs, mask=np.ones((len(t), n), dtype=bool),
-                         lowpass=lambda x: sosfiltfilt(sos, x, axis=0), joints=["j1", "j2", "j3"],
-                         signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=7.0)), extra={})
+    n = 3
+    rd = _cycling_gears(25.6, 25.6, 0.002)
     width, f = BacklashRattle.oscillation(rd, 0)
     assert abs(f - 25.6) < 0.5 and 0.007 < width < 0.009           # 2 x 0.004 peak to peak
     assert BacklashRattle.oscillation(rd, 0) == (width, f) and set(rd.extra["rattle_oscillation"]) == {0}   # made once
@@ -582,12 +589,36 @@ def test_a_thermal_lag_at_the_slowest_time_constant_tried_is_a_ramp_and_not_name
     assert not term.effect(rd, 4, (36.0, "current_squared"), np.array([0.01, 0, 0]), np.array([0.01, 1, 1]))[2]
 
 
+def _ladder_state(rd, residual, readings):
+    """A search as the ladder leaves it on ``residual`` (N, 2): ``readings`` (term, joint, coefficient) accepted in
+    that order, their torque taken off both bands. Returns (search, res)."""
+    from diagnosis.library import Fitted
+    from diagnosis.search import MismatchSearch, Scored
+
+    search = MismatchSearch()
+    res = {"low": residual.copy(), "wide": residual.copy()}
+    search.accepted_, search.references_, search._order, search.dropped_ = [], [], [], []
+    search.corrections_ = {"low": np.zeros_like(residual), "wide": np.zeros_like(residual)}
+    search._masks = None
+    for term, j, c in readings:
+        f = Fitted(kind=term.kind, joint=j, hyper=None, coef=np.array([c]), coef_std=np.zeros(1), effect={},
+                   summary="", plausible=True)
+        s = Scored(fitted=f, fit_gain=0.5, select_gain=0.5, select_gain_all=0.5, holdout_gain=0.5,
+                   rms_before=np.ones(2), rms_after=np.ones(2), band="low", term=term)
+        search.accepted_.append(s)
+        search._order.append(s)
+        torque = term.columns(rd, j, None)[:, :, 0] * c
+        for band in res:
+            res[band] -= torque
+            search.corrections_[band] += torque
+    return search, res
+
+
 def _refit_setup(N=6000, seed=3, step=(1e-3, 1e-3)):
     """Two motors, fit / select / report rows in thirds, and three linear terms for ``MismatchSearch._joint_refit``:
     a 'payload' on both motors (changes the load), its near twin read on another link, and a 'friction' on motor 1
     whose column reads the load (``diagnosis.library._load``)."""
-    from diagnosis.library import Fitted, Term, _load
-    from diagnosis.search import MismatchSearch, Scored
+    from diagnosis.library import Term, _load
 
     rng = np.random.default_rng(seed)
     t = np.arange(N) / 500.0
@@ -638,22 +669,7 @@ def _refit_setup(N=6000, seed=3, step=(1e-3, 1e-3)):
 
     def state(readings):
         """The search as the ladder leaves it: ``readings`` (term, joint, coefficient) accepted in that order."""
-        search = MismatchSearch()
-        res = {"low": residual.copy(), "wide": residual.copy()}
-        search.accepted_, search.references_, search._order, search.dropped_ = [], [], [], []
-        search.corrections_ = {"low": np.zeros_like(residual), "wide": np.zeros_like(residual)}
-        search._masks = None
-        for term, j, c in readings:
-            f = Fitted(kind=term.kind, joint=j, hyper=None, coef=np.array([c]), coef_std=np.zeros(1), effect={},
-                       summary="", plausible=True)
-            s = Scored(fitted=f, fit_gain=0.5, select_gain=0.5, select_gain_all=0.5, holdout_gain=0.5,
-                       rms_before=np.ones(2), rms_after=np.ones(2), band="low", term=term)
-            search.accepted_.append(s)
-            search._order.append(s)
-            torque = term.columns(rd, j, None)[:, :, 0] * c
-            for band in res:
-                res[band] -= torque
-                search.corrections_[band] += torque
+        search, res = _ladder_state(rd, residual, readings)
         return search, res, {"low": np.ones(2), "wide": np.ones(2)}
 
     return rd, Mass(x), Mass(twin), LoadFriction(), state, residual
@@ -731,8 +747,7 @@ def test_joint_normal_equations_match_a_direct_least_squares_on_every_subset_and
 def _payload_and_offset(x_elbow, residual, N):
     """A search as the ladder leaves it with a 'payload' (columns ``x``: motor 1's torque per kg varies, motor 2's
     is ``x_elbow``) and a torque offset on motor 2 accepted, on ``residual``; fit / select / report rows in thirds."""
-    from diagnosis.library import Fitted, Term, TorqueOffset
-    from diagnosis.search import MismatchSearch, Scored
+    from diagnosis.library import Term, TorqueOffset
 
     t = np.arange(N) / 500.0
     x = np.stack([np.sin(2 * np.pi * 0.3 * t), x_elbow], axis=1)
@@ -754,21 +769,7 @@ def _payload_and_offset(x_elbow, residual, N):
         def effect(self, rd, j, h, coef, std):
             return {"kind": self.kind, "joints": [j], "mass": float(coef[0])}, f"{coef[0]:.3g} kg", True, ""
 
-    search = MismatchSearch()
-    res = {"low": residual(x).copy(), "wide": residual(x).copy()}
-    search.accepted_, search.references_, search._order, search.dropped_ = [], [], [], []
-    search.corrections_ = {"low": np.zeros((N, 2)), "wide": np.zeros((N, 2))}
-    search._masks = None
-    for term, j, c in ((Mass(), 1, 0.3), (TorqueOffset(), 1, 0.05)):
-        f = Fitted(kind=term.kind, joint=j, hyper=None, coef=np.array([c]), coef_std=np.zeros(1), effect={},
-                   summary="", plausible=True)
-        s = Scored(fitted=f, fit_gain=0.5, select_gain=0.5, select_gain_all=0.5, holdout_gain=0.5,
-                   rms_before=np.ones(2), rms_after=np.ones(2), band="low", term=term)
-        search.accepted_.append(s)
-        search._order.append(s)
-        for band in res:
-            res[band] -= term.columns(rd, j, None)[:, :, 0] * c
-            search.corrections_[band] += term.columns(rd, j, None)[:, :, 0] * c
+    search, res = _ladder_state(rd, residual(x), ((Mass(), 1, 0.3), (TorqueOffset(), 1, 0.05)))
     search._joint_refit(rd, res, {"low": np.ones(2), "wide": np.ones(2)})
     return search
 
@@ -802,22 +803,13 @@ def test_an_offset_that_moves_the_payloads_mass_is_dropped_and_one_that_does_not
 def test_an_offset_on_a_gear_swinging_in_an_accepted_limit_cycle_is_reported_as_its_mean():
     """TorqueOffset.resolve with the terms accepted before it: an offset on a motor whose gear swings at an accepted
     rattle's frequency (within SAME_CYCLE) is the cycle's mean, the reference CycleOffset (unexplained, not named;
-    bench: two offsets on motors 2 and 3 beside 9 of 12 250 Hz shoulder plays); one on a gear swinging at its own
-    frequency, or with no rattle accepted, stays a torque offset."""
-    from scipy.signal import butter, sosfiltfilt
-
+    bench: torque offsets on motors 2 and 3 beside the 250 Hz shoulder and elbow rattles of 9 cases); one on a gear
+    swinging at its own frequency, or with no rattle accepted, stays a torque offset."""
     from diagnosis.library import BacklashRattle, CycleOffset, Fitted, PayloadChange, TorqueOffset
     from diagnosis.search import Scored
 
-    fs, n = 250.0, 3
-    t = np.arange(0, 20, 1 / fs)
-    sos = butter(4, 7.0, fs=fs, output="sos")
-    q = np.stack([0.3 * np.sin(0.5 * t) + 0.004 * np.sin(2 * np.pi * 24.9 * t),      # the play's joint
-                  0.2 * np.sin(0.4 * t) + 0.003 * np.sin(2 * np.pi * 25.4 * t),      # shaken in the same cycle
-                  0.1 * np.sin(0.3 * t) + 0.003 * np.sin(2 * np.pi * 37.0 * t)], axis=1)   # its own oscillation
-    rd = SimpleNamespace(K=np.eye(n), q_motor=q, fs=fs, mask=np.ones((len(t), n), dtype=bool),
-                         lowpass=lambda x: sosfiltfilt(sos, x, axis=0), joints=["j1", "j2", "j3"],
-                         signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=7.0)), extra={})
+    n = 3
+    rd = _cycling_gears(24.9, 25.4, 0.003)          # the shaken gear 2 % off the cycle, as bench case 120's motor 5
 
     def scored(term, kind, j):
         fit = Fitted(kind=kind, joint=j, hyper=None, coef=np.array([0.009]), coef_std=np.array([1e-4]),
