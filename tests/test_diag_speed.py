@@ -329,3 +329,17 @@ def test_readme_speed_figures_of_stop_25_are_its_committed_runs():
     assert f"the search {b_search} -> {a_search} s" in readme
     assert "joint_elasticity (unfiltered)" in a_out and "joint_elasticity (unfiltered)" not in b_out
     assert "code: /tmp/js2_stop24/diagnosis" in b_out and "code: /work/main/diagnosis" in a_out
+
+
+def test_readme_speed_figures_of_stop_26_are_its_committed_runs():
+    """Stop 26: the stop-25 code and this release in turn, with ``--per-kind`` (docs/bench/diagnose-speed-2026-11-26-
+    stop26{-before,}.txt): the README's totals, ratios and search seconds are what scripts/bench_diagnose_speed.py
+    printed, the goal is not met, and the two runs are of the two codes."""
+    readme, got = _readme_flat(), _speed_runs("stop26")
+    (b_cpu, b_per4, b_x), b_search, b_out = got["-before"]
+    (a_cpu, a_per4, a_x), a_search, a_out = got[""]
+    assert (f"**Stop 26, this release: {a_cpu} CPU s, per 4 minutes {a_per4} ({a_x}x the goal); the stop-25 code in "
+            f"the same session {b_cpu} CPU s, per 4 minutes {b_per4} ({b_x}x): not met**") in readme
+    assert f"the search {b_search} -> {a_search} s" in readme
+    assert f"Speed: {a_x}x the 30 s goal on this machine today (the stop-25 code {b_x}x in the same session" in readme
+    assert "code: /tmp/js2_stop25/diagnosis" in b_out and "code: /work/main/diagnosis" in a_out
