@@ -384,16 +384,12 @@ class TorqueOffset(Term):
         (motor 2) and 0.002-0.004 N*m (motor 3), named as torque offsets in 9 cases (20, 49, 117, 120, 135, 147,
         199, 282, 318; on the clean cases none). Each of those motors' gears swung at the cycle's frequency (within
         2 %)."""
-        rattles = [a for a in accepted if _rings(a)]
-        f_j = BacklashRattle.oscillation(rd, j)[1] if rattles else float("nan")
-        for a in rattles:
-            if not np.isfinite(f_j):
-                break
-            f_a = BacklashRattle.oscillation(rd, a.fitted.joint)[1]
-            if np.isfinite(f_a) and abs(f_j - f_a) <= BacklashRattle.SAME_CYCLE * f_a:
-                return (f"its gear swings at {f_j:.3g} Hz, in the limit cycle of the {a.fitted.kind} found on "
-                        f"{rd.joints[a.fitted.joint]} ({f_a:.3g} Hz): a nonlinear oscillation's mean torque")
-        return ""
+        found = BacklashRattle.swinging_with(rd, j, accepted)
+        if found is None:
+            return ""
+        a, f_j, f_a = found
+        return (f"its gear swings at {f_j:.3g} Hz, in the limit cycle of the {a.fitted.kind} found on "
+                f"{rd.joints[a.fitted.joint]} ({f_a:.3g} Hz): a nonlinear oscillation's mean torque")
 
 
 class ModelDataOffset(TorqueOffset):
@@ -1604,20 +1600,33 @@ class BacklashRattle(Term):
         (a rattle, or a loaded spring found through its cycle, :class:`LoadedElasticity`) is not named, nor one on
         the joint where such a spring was found."""
         j = candidate.fitted.joint
-        f_j = self.oscillation(rd, j)[1]
-        for a in accepted:
-            if not _rings(a):
-                continue
-            if a.fitted.joint == j:
-                if isinstance(a.term, LoadedElasticity):
-                    return (f"the spring found on {rd.joints[j]} rings in the loop's limit cycle: its gear's swing is "
-                            "that spring's, not a play's")
-                continue
-            f_a = self.oscillation(rd, a.fitted.joint)[1]
-            if np.isfinite(f_j) and np.isfinite(f_a) and abs(f_j - f_a) <= self.SAME_CYCLE * f_a:
-                return (f"its gear oscillates at {f_j:.3g} Hz, with the {a.fitted.kind} found on "
-                        f"{rd.joints[a.fitted.joint]} ({f_a:.3g} Hz): the same limit cycle, one play")
-        return ""
+        if any(a.fitted.joint == j and isinstance(a.term, LoadedElasticity) for a in accepted):
+            return (f"the spring found on {rd.joints[j]} rings in the loop's limit cycle: its gear's swing is that "
+                    "spring's, not a play's")
+        found = self.swinging_with(rd, j, accepted, other_joints=True)
+        if found is None:
+            return ""
+        a, f_j, f_a = found
+        return (f"its gear oscillates at {f_j:.3g} Hz, with the {a.fitted.kind} found on {rd.joints[a.fitted.joint]} "
+                f"({f_a:.3g} Hz): the same limit cycle, one play")
+
+    @classmethod
+    def swinging_with(cls, rd, j, accepted, other_joints: bool = False):
+        """The first of the ``accepted`` readings that owns a limit cycle (a rattle, or a loaded spring found through
+        one) whose gear's dominant frequency lies within ``SAME_CYCLE`` of joint j's gear's (on another joint only,
+        with ``other_joints``): (that reading, f_j, its f), or None. The one test of "swings in the same cycle" that
+        :meth:`already_found` and :meth:`TorqueOffset._in_cycle` share."""
+        rattles = [a for a in accepted if _rings(a) and not (other_joints and a.fitted.joint == j)]
+        if not rattles:
+            return None
+        f_j = cls.oscillation(rd, j)[1]
+        if not np.isfinite(f_j):
+            return None
+        for a in rattles:
+            f_a = cls.oscillation(rd, a.fitted.joint)[1]
+            if np.isfinite(f_a) and abs(f_j - f_a) <= cls.SAME_CYCLE * f_a:
+                return a, f_j, f_a
+        return None
 
     #: own-motor select gain of the first-order spring (:class:`JointElasticity`, torque band) on a gravity-loaded
     #: rattling joint at and above which the rattle is read as a spring (:meth:`resolve`)
