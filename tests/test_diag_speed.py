@@ -304,6 +304,20 @@ def _readme_flat() -> str:
     return " ".join((Path(__file__).resolve().parent.parent / "README.md").read_text().split())
 
 
+def _readme_pair(stop: str, label: str, before: str) -> dict:
+    """A stop's two speed runs, the code before it (``before``, e.g. 'stop-24', run from /tmp/js2_stop24) and this
+    release in turn (:func:`_speed_runs`): the README's sentence of their totals, ratios and search seconds is what
+    scripts/bench_diagnose_speed.py printed, and each run was of its code. Returns the runs."""
+    readme, got = _readme_flat(), _speed_runs(stop)
+    (b_cpu, b_per4, b_x), b_search, b_out = got["-before"]
+    (a_cpu, a_per4, a_x), a_search, a_out = got[""]
+    assert (f"**{label}, this release: {a_cpu} CPU s, per 4 minutes {a_per4} ({a_x}x the goal); the {before} code in "
+            f"the same session {b_cpu} CPU s, per 4 minutes {b_per4} ({b_x}x): not met**") in readme
+    assert f"the search {b_search} -> {a_search} s" in readme
+    assert f"code: /tmp/js2_{before.replace('-', '')}/diagnosis" in b_out and "code: /work/main/diagnosis" in a_out
+    return got
+
+
 def test_readme_speed_figures_of_stop_24_are_its_committed_runs():
     """Stop 24's machine, the stop-23 code and this release in turn (docs/bench/diagnose-speed-2026-11-26-stop24
     {-before,}.txt): the README's totals, ratios and search seconds are what scripts/bench_diagnose_speed.py printed,
@@ -321,25 +335,16 @@ def test_readme_speed_figures_of_stop_25_are_its_committed_runs():
     """Stop 25: the stop-24 code and this release in turn, with ``--per-kind`` (docs/bench/diagnose-speed-2026-11-26-
     stop25{-before,}.txt): the README's totals, ratios and search seconds are what scripts/bench_diagnose_speed.py
     printed, the goal is not met, and the per-kind table has this release's two new readings' kinds."""
-    readme, got = _readme_flat(), _speed_runs("stop25")
-    (b_cpu, b_per4, b_x), b_search, b_out = got["-before"]
-    (a_cpu, a_per4, a_x), a_search, a_out = got[""]
-    assert (f"**Stop 25, this release: {a_cpu} CPU s, per 4 minutes {a_per4} ({a_x}x the goal); the stop-24 code in "
-            f"the same session {b_cpu} CPU s, per 4 minutes {b_per4} ({b_x}x): not met**") in readme
-    assert f"the search {b_search} -> {a_search} s" in readme
+    got = _readme_pair("stop25", "Stop 25", "stop-24")
+    b_out, a_out = got["-before"][2], got[""][2]
     assert "joint_elasticity (unfiltered)" in a_out and "joint_elasticity (unfiltered)" not in b_out
-    assert "code: /tmp/js2_stop24/diagnosis" in b_out and "code: /work/main/diagnosis" in a_out
 
 
 def test_readme_speed_figures_of_stop_26_are_its_committed_runs():
     """Stop 26: the stop-25 code and this release in turn, with ``--per-kind`` (docs/bench/diagnose-speed-2026-11-26-
     stop26{-before,}.txt): the README's totals, ratios and search seconds are what scripts/bench_diagnose_speed.py
     printed, the goal is not met, and the two runs are of the two codes."""
-    readme, got = _readme_flat(), _speed_runs("stop26")
-    (b_cpu, b_per4, b_x), b_search, b_out = got["-before"]
-    (a_cpu, a_per4, a_x), a_search, a_out = got[""]
-    assert (f"**Stop 26, this release: {a_cpu} CPU s, per 4 minutes {a_per4} ({a_x}x the goal); the stop-25 code in "
-            f"the same session {b_cpu} CPU s, per 4 minutes {b_per4} ({b_x}x): not met**") in readme
-    assert f"the search {b_search} -> {a_search} s" in readme
-    assert f"Speed: {a_x}x the 30 s goal on this machine today (the stop-25 code {b_x}x in the same session" in readme
-    assert "code: /tmp/js2_stop25/diagnosis" in b_out and "code: /work/main/diagnosis" in a_out
+    got = _readme_pair("stop26", "Stop 26", "stop-25")
+    b_x, a_x = got["-before"][0][2], got[""][0][2]
+    assert f"Speed: {a_x}x the 30 s goal on this machine today (the stop-25 code {b_x}x in the same session" in \
+        _readme_flat()
