@@ -1,0 +1,98 @@
+"""The real-data benchmark (scripts/bench_diagnose_real.py): randomised effects added to the real KUKA LWR4+
+recordings along their recorded motion, diagnosed with the plain command. The README's figures are what the script
+computes from its committed rows (docs/bench/diagnose-bench-real-2026-11-26-stop27.json), and the rows are what the
+script makes: a few cases are drawn, synthesised and diagnosed again here and must name the same effects."""
+import importlib.util
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fixtures_id_sim import REAL
+
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text()
+ROWS = ROOT / "docs" / "bench" / "diagnose-bench-real-2026-11-26-stop27.json"
+
+
+def _script(name: str):
+    spec = importlib.util.spec_from_file_location(f"{name}_under_test", ROOT / "scripts" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+bench_real = _script("bench_diagnose_real")
+
+
+@pytest.fixture(scope="module")
+def committed():
+    rows = json.loads(ROWS.read_text())["rows"]
+    return rows, bench_real.sim_bench.score(rows)
+
+
+def _readme_real_section() -> str:
+    start = README.index("Randomised effects on the real recordings")
+    return README[start:README.index("On 160 randomised simulator cases", start)]
+
+
+def test_the_readme_rates_are_the_committed_rows(committed):
+    rows, s = committed
+    text = _readme_real_section()
+    m = re.search(r"On (\d+) cases .*?\*\*(\d+) of (\d+) concealed effects \((\d+) %\)\*\*.*?\*\*(\d+) of (\d+) clean "
+                  r"cases\*\*.*?\*\*(\d+) false names\*\*.*?(\d+) of (\d+) visible", text, re.S)
+    assert m, text
+    cases, found, total, pct, clean_ok, clean, false, vis_found, vis = map(int, m.groups())
+    assert cases == len(rows)
+    assert (found, total, pct) == (s["effects_found"], s["effects"], round(100 * s["effect_rate"]))
+    assert (clean_ok, clean) == (s["clean_none"], s["clean"])
+    assert false == sum(s["false_names"].values())
+    assert (vis_found, vis) == (s["visible_found"], s["visible"])
+
+
+def test_the_readme_confusion_matrix_is_the_committed_rows(committed):
+    _, s = committed
+    text = _readme_real_section()
+    cols = ["nothing", "stribeck", "cogging", "payload_change", "thermal_drift", "load_dependent_friction",
+            "asymmetric_friction", "joint_elasticity", "backlash", "coupling", "torque_offset"]
+    for label, row in s["confusion"].items():
+        if not sum(row.values()):
+            continue
+        name = f"none ({s['clean']} clean cases)" if label == "none" else label
+        line = f"| {name} | " + " | ".join(str(row[c]) if row[c] else "." for c in cols) + " |"
+        assert line in text, line
+
+
+def test_the_drawn_effects_are_sized_against_the_model_error():
+    """The bench's own synthesis: each sized effect's RMS on its joint is its drawn multiple of the clean
+    recording's torque-band residual there; its parameters follow from that scale; a torque offset adds exactly its
+    offset; the draw is fixed by the seed."""
+    for seed in range(12):
+        assert bench_real.draw_case(seed, 7) == bench_real.draw_case(seed, 7)
+    case = next(c for c in (bench_real.draw_case(s, 7) for s in range(60))
+                if any(e["kind"] == "torque_offset" for e in c["effects"]) and len(c["effects"]) == 1)
+    e = case["effects"][0]
+    assert bench_real.SIZE[0] <= e["size"] <= bench_real.SIZE[1]
+    t = np.linspace(0, 1, 50)
+    q = np.zeros((50, 7))
+    d = bench_real.effect_torque({**e, "scale": 0.3}, t, q, q, q, np.ones(7), np.ones(7), None, [])
+    assert np.allclose(d[:, e["joints"][0]], 0.3 * e["sign"])
+    assert np.count_nonzero(np.delete(d, e["joints"][0], axis=1)) == 0
+
+
+@pytest.mark.skipif(not (REAL / "kuka_lwr4").is_dir(), reason=f"real-arm recordings not found at {REAL}")
+@pytest.mark.parametrize("seed", [0, 2, 7])
+def test_committed_rows_are_what_the_bench_makes(kuka_diag, committed, tmp_path, seed):
+    rows, _ = committed
+    row = next(r for r in rows if r["seed"] == seed)
+    ws = bench_real.Workspace(REAL, tmp_path, logs=kuka_diag["work"], model=kuka_diag["model"])
+    case = bench_real.draw_case(seed, len(ws.joints))
+    assert case == row["case"]
+    again = bench_real.run_case(case, ws, tmp_path)
+    assert [(f["kind"], f["joint"]) for f in again["named"]] == [(f["kind"], f["joint"]) for f in row["named"]]
+    assert np.allclose(again["visibility"], row["visibility"], rtol=1e-6, atol=1e-9)
+    for a, b in zip(again["named"], row["named"]):
+        if a["kind"] == "payload_change":
+            assert a["effect"]["mass"] == pytest.approx(b["effect"]["mass"], rel=1e-3)
