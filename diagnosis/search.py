@@ -67,6 +67,8 @@ class Scored:
     counts: float = float("nan")             # RMS of the term's torque on the select rows, in counts of the drive's
                                              # current read-back, on the motor where it is largest (made only for a
                                              # term with a floor, ``Term.min_counts``)
+    select_per_motor: tuple = ()             # (motors, before, after): weighted select-row sums of squares on them
+                                             # (``Term.max_worse_motor``)
 
     def row(self, joints) -> dict:
         f = self.fitted
@@ -313,7 +315,9 @@ class MismatchSearch:
                       rms_before=st["rms"].copy(), rms_after=rms_after,
                       band=band, term=term, select_gain_own=gain(s_own, s_own1),
                       counts=(self._counts(rd, rows["select_rows"], motors, contrib) if term.min_counts > 0
-                              else float("nan")))
+                              else float("nan")),
+                      select_per_motor=(np.asarray(motors), st["s0"]["select_rows"][motors].copy(),
+                                        s1["select_rows"].copy()))
 
     @staticmethod
     def _counts(rd: ResidualData, select: np.ndarray, motors, contrib: np.ndarray) -> float:
@@ -344,6 +348,16 @@ class MismatchSearch:
         if s.term is not None and s.term.own_motor and s.select_gain_own < self.min_gain:
             return (f"select gain on motor {s.fitted.joint + 1} itself {s.select_gain_own:.1%} < {self.min_gain:.0%}: "
                     "what it explains is on other motors")
+        limit = s.term.max_worse_motor if s.term is not None else None
+        if limit is not None and len(s.select_per_motor) == 3:
+            motors, before, after = s.select_per_motor
+            ratio = np.where(before > 0, after / np.where(before > 0, before, 1.0), 1.0)
+            k = int(np.argmax(ratio))
+            if ratio[k] > limit:
+                motor = int(motors[k])
+                return (f"it makes motor {motor + 1}'s select residual {ratio[k]:.2g}x worse (sum of squares; > "
+                        f"{limit:g}x): one rigid body's torque explains every motor it loads, so what it explains on "
+                        "the others is not that")
         return ""
 
     # -- the ladder -------------------------------------------------------------------------------------------------
@@ -626,6 +640,16 @@ class MismatchSearch:
             if worst is None:
                 break
             k, swing, p, m0, m1 = worst
+            alone = [q for q in keep if q != k]
+            worse = self._worse_motor(eq, alone, p, order)
+            if worse is not None:          # without the constant the mass is no rigid body: it goes, the constant stays
+                keep.remove(p)
+                motor, ratio = worse
+                out.append((order[p], f"dropped after the search: it and the constant torque on motor "
+                            f"{order[k].fitted.joint + 1} are one reading on this motion, and without that constant "
+                            f"the mass makes motor {motor + 1}'s select residual {ratio:.2g}x worse (> "
+                            f"{order[p].term.max_worse_motor:g}x): one rigid body explains every motor it loads"))
+                continue
             keep.remove(k)
             change = (m1 - m0) / max(abs(m0), 1e-12)
             out.append((order[k], f"dropped after the search: fitted together with the payload on "
@@ -633,6 +657,22 @@ class MismatchSearch:
                         f"({change:+.0%}): on this motion a constant torque and the payload's weight are one reading, "
                         "and the payload explains every motor"))
         return out
+
+    @staticmethod
+    def _worse_motor(eq, subset: list, k: int, order: list):
+        """(motor, ratio) where term ``order[k]`` (in ``subset``, fitted with it on the fit rows) leaves a motor's
+        select residual (sum of squares) more than its ``Term.max_worse_motor`` times what ``subset`` without it
+        leaves, the worst such motor; None where it does not (or the term sets no limit)."""
+        limit = order[k].term.max_worse_motor
+        if limit is None:
+            return None
+        ix, coef = eq.solve(subset, ["fit_rows"])
+        others = [q for q in subset if q != k]
+        ix0, coef0 = eq.solve(others, ["fit_rows"]) if others else (np.array([], dtype=int), np.zeros(0))
+        with_k, without = eq.sse("select_rows", ix, coef), eq.sse("select_rows", ix0, coef0)
+        ratio = np.where(without > 0, with_k / np.where(without > 0, without, 1.0), 1.0)
+        m = int(np.argmax(ratio))
+        return (m, float(ratio[m])) if ratio[m] > limit else None
 
     def _sequential_gains(self, rd, eq, order: list, keep: list, ix: np.ndarray, coef: np.ndarray,
                           w_safe: np.ndarray) -> None:

@@ -744,9 +744,10 @@ def test_joint_normal_equations_match_a_direct_least_squares_on_every_subset_and
                                (np.where(masks["fit_rows"], b, 0.0) ** 2).sum(axis=0), rtol=1e-12)
 
 
-def _payload_and_offset(x_elbow, residual, N):
+def _payload_and_offset(x_elbow, residual, N, worse_limit=None):
     """A search as the ladder leaves it with a 'payload' (columns ``x``: motor 1's torque per kg varies, motor 2's
-    is ``x_elbow``) and a torque offset on motor 2 accepted, on ``residual``; fit / select / report rows in thirds."""
+    is ``x_elbow``; ``worse_limit``: its ``Term.max_worse_motor``) and a torque offset on motor 2 accepted, on
+    ``residual``; fit / select / report rows in thirds."""
     from diagnosis.library import Term, TorqueOffset
 
     t = np.arange(N) / 500.0
@@ -759,6 +760,7 @@ def _payload_and_offset(x_elbow, residual, N):
 
     class Mass(Term):
         kind, changes_load = "payload_change", True
+        max_worse_motor = worse_limit
 
         def motors(self, rd, j):
             return np.arange(2)
@@ -798,6 +800,52 @@ def test_an_offset_that_moves_the_payloads_mass_is_dropped_and_one_that_does_not
     assert [s.fitted.kind for s in search.accepted_] == ["payload_change", "torque_offset"] and not search.dropped_
     assert search.accepted_[0].fitted.coef[0] == pytest.approx(0.4, abs=0.002)
     assert search.accepted_[1].fitted.coef[0] == pytest.approx(0.03, abs=0.002)
+
+
+def test_a_mass_that_only_stands_in_for_a_constant_goes_and_the_constant_stays():
+    """MismatchSearch._drop_confounded with a payload that sets ``Term.max_worse_motor`` (bench cases 20, 138, 147:
+    beside a 250 Hz shoulder rattle, a negative 'payload' on the hand and the limit cycle's constant on motors 2-3
+    are one reading; without the constants the mass makes motor 1's select residual 1.8-7.3x worse). Motor 2 carries
+    only a constant; the mass's torque there hardly varies, on motor 1 it does and motor 1 carries nothing: fitted
+    without the offset the mass makes motor 1 worse, so it is the mass that goes, with the reason."""
+    N = 6000
+    rng = np.random.default_rng(6)
+    t = np.arange(N) / 500.0
+    flat = 1.0 + 0.05 * np.sin(2 * np.pi * 0.2 * t)
+    const = lambda x: np.stack([np.zeros(N), np.full(N, 0.4)], axis=1) + rng.normal(0, 2e-3, (N, 2))  # noqa: E731
+    search = _payload_and_offset(flat, const, N, worse_limit=2.0)
+    assert [s.fitted.kind for s in search.accepted_] == ["torque_offset"]
+    (gone, why), = search.dropped_
+    assert gone.fitted.kind == "payload_change" and "motor 1's select residual" in why and "rigid body" in why
+    assert search.accepted_[0].fitted.coef[0] == pytest.approx(0.4, abs=0.002)
+    # the same reading without the limit: the offset goes (the rule of case 151), the mass stays
+    search = _payload_and_offset(flat, const, N)
+    assert [s.fitted.kind for s in search.accepted_] == ["payload_change"]
+
+
+def test_a_payload_that_makes_one_motor_much_worse_is_refused_by_the_ladder():
+    """MismatchSearch._why_rejected with ``Term.max_worse_motor`` (PayloadChange: 2.0): the select rows' sum of
+    squares on each of the term's motors after it, against before it; more than the limit on any motor refuses it
+    and says which motor; a term that sets no limit is not held to it."""
+    from diagnosis.library import Fitted, PayloadChange, TorqueOffset
+    from diagnosis.search import MismatchSearch, Scored
+
+    def scored(term, before, after):
+        f = Fitted(kind=term.kind, joint=5, hyper=None, coef=np.array([-0.1, 0, 0, 0]), coef_std=np.full(4, 1e-3),
+                   effect={}, summary="", plausible=True, why_not="")
+        return Scored(fitted=f, fit_gain=0.3, select_gain=0.3, select_gain_all=0.3, holdout_gain=0.3,
+                      rms_before=np.ones(6), rms_after=np.ones(6), band="low", term=term,
+                      select_per_motor=(np.arange(6), np.asarray(before, float), np.asarray(after, float)))
+
+    search = MismatchSearch()
+    before = [0.02, 0.21, 0.23, 0.07, 0.22, 0.26]                     # bench case 49's shares
+    case49 = [0.02 * 3.44, 0.21 * 0.87, 0.23 * 0.75, 0.07 * 0.89, 0.22 * 0.67, 0.26 * 0.77]
+    assert "motor 1's select residual 3.4x worse" in search._why_rejected(scored(PayloadChange(), before, case49))
+    tx40 = np.array([0.035, 0.198, 0.089, 0.075, 0.23, 0.373])          # the real TX40's 1 kg read on link 5
+    assert search._why_rejected(scored(PayloadChange(), tx40, tx40 * [0.96, 0.11, 0.67, 1.61, 0.64, 1.0])) == ""
+    shares58, ratios58 = np.array([0.05, 0.18, 0.16, 0.13, 0.1, 0.23]), np.array([1.45, 0.01, 0.09, 0.01, 0.2, 0.64])
+    assert search._why_rejected(scored(PayloadChange(), shares58, shares58 * ratios58)) == ""   # real bench case 58
+    assert search._why_rejected(scored(TorqueOffset(), before, case49)) == ""    # no limit asked for
 
 
 def test_an_offset_on_a_gear_swinging_in_an_accepted_limit_cycle_is_reported_as_its_mean():
