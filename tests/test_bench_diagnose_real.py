@@ -96,3 +96,26 @@ def test_committed_rows_are_what_the_bench_makes(kuka_diag, committed, tmp_path,
     for a, b in zip(again["named"], row["named"]):
         if a["kind"] == "payload_change":
             assert a["effect"]["mass"] == pytest.approx(b["effect"]["mass"], rel=1e-3)
+
+
+def test_the_readme_fresh_real_cases_are_their_committed_rows():
+    """Seeds 60-119 (docs/bench/diagnose-bench-real-fresh-2026-11-26-stop27.json): the README's rates, false names
+    and payload-mass figures are bench_diagnose's score of those rows."""
+    rows = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-fresh-2026-11-26-stop27.json").read_text())["rows"]
+    assert [r["seed"] for r in rows] == list(range(60, 120))
+    s = bench_real.sim_bench.score(rows)
+    text = " ".join(_readme_real_section().split())
+    assert (f"**On 60 further cases (seeds 60-119, drawn after this stop's diagnosis change was final and never read "
+            f"before it): {s['effects_found']} of {s['effects']} ({round(100 * s['effect_rate'])} %)**, clean "
+            f"{s['clean_none']} of {s['clean']}, {sum(s['false_names'].values())} false names") in text
+    false = [(f, r) for r in rows for f in r["named"] if f["kind"] == "payload_change"
+             and not any(e["kind"] == "payload_change" and e["joints"][0] == f["joint"] for e in r["effects"])]
+    own = [f for f, r in false if r["recording"] == "kuka_2" and f["joint"] == 6 and abs(f["effect"]["mass"]) < 0.04]
+    moved = [f for f, r in false if any(e["kind"] == "payload_change" for e in r["effects"])]
+    assert len(own) + len(moved) == len(false) == s["false_names"]["payload_change"]
+    assert (f"({len(own)} of them kuka_2's own -0.03 kg on the hand, {len(moved)} true payloads named on a neighbouring "
+            "link)") in text
+    errors = sorted(100 * e["mass"]["rel_error"] for e in s["param_errors"]["payload_change"])
+    within = sum(e <= 10 for e in errors)
+    assert (f"payload masses there {round(errors[0])} to {round(errors[-1])} % off, within 10 % on {within} of the "
+            f"{len(errors)} named on their link") in text
