@@ -300,7 +300,9 @@ def _key(f: dict, joint: int) -> tuple:
 
 
 def score(rows: list[dict]) -> dict:
-    labels = ["none"] + list(NAMED)          # a concealed torque offset: the real-data bench's (bench_diagnose_real)
+    # a concealed torque offset is the real-data bench's (bench_diagnose_real): its row only where one is concealed
+    labels = ["none"] + list(ALL_KINDS) + [k for k in NAMED if k not in ALL_KINDS
+                                           and any(e["kind"] == k for r in rows for e in r["effects"])]
     cols = ["nothing"] + list(NAMED)
     conf = {r: {c: 0 for c in cols} for r in labels}
     false_names = {k: 0 for k in NAMED}

@@ -1303,6 +1303,9 @@ def test_stop25_fresh_cases_drawn_after_the_change_in_the_readme_and_docs_are_th
 
 
 # --- stop 26: a limit cycle's mean, an offset beside a payload, a loaded spring (the README's figures) -------------
+STOP26_README = DOC[DOC.index("#### The README's summary at stop 26"):DOC.index("### 2026-11-26, stop 25:")]
+
+
 def _stop26_section() -> str:
     return " ".join(DOC[DOC.index("### 2026-11-26, stop 26:"):DOC.index("### 2026-11-26, stop 25:")].split())
 
@@ -1345,7 +1348,7 @@ def test_stop26_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(stop26):
         "| 200-239 | **34 of 40 (85 %)** | 32 of 33 | 7 of 7 | 6 | 33, 7 of 7, 7 |",
         "| 240-279 | 27 of 37 (73 %) | 24 of 26 | 10 of 10 | 4 | 27, 10 of 10, 4 |",
         "| 280-319 | 31 of 40 (78 %) | 28 of 31 | 7 of 7 | 5 | 31, 7 of 7, 9 |"))
-    readme = " ".join(README.split())
+    readme = " ".join(STOP26_README.split())
     assert ("**152 of 186 concealed effects (82 %, goal 90 %)** and nothing on **20 of 21 clean cases (95 %, goal "
             "95 %)**, with **26 false names** (the stop-25 code on the same recordings: 149, 20 of 21, 39)") in readme
     assert ("cases 0-71 **72 of 83 (87 %)**, clean 11 of 11; 72-95 25 of 30; the hard kinds 96-135 **36 of 46 "
@@ -1382,7 +1385,7 @@ def test_stop26_changes_only_these_cases_on_the_same_recordings(stop26):
     assert changed[49][1] == [("joint_elasticity", 1), ("payload_change", 5)]
     assert changed[176][1] == [("cogging", 4), ("payload_change", 2)]          # its coupling on joint 2 still missed
     assert "Case 176 still misses its coupling (lost at stop 25; a false payload on link 3 stands in for it)" in \
-        " ".join(README.split())
+        " ".join(STOP26_README.split())
     assert next(f["effect"]["mass"] for r in this if r["seed"] == 49 for f in r["named"]
                 if f["kind"] == "payload_change") == pytest.approx(-0.061, abs=0.0005)
     # no true play lost anywhere
@@ -1408,7 +1411,7 @@ def test_stop26_changes_only_these_cases_on_the_same_recordings(stop26):
     assert all(v < 0 for v in low) and (min(-v for v in low), max(-v for v in low)) == (21, 74)
     # the plays the rule was read beside: the simulator's contact stiffness
     assert {e["stiffness"] for r in this for e in r["effects"] if e["kind"] == "backlash"} == {3000.0}
-    readme = " ".join(README.split())
+    readme = " ".join(STOP26_README.split())
     assert "the false torque offsets over cases 0-319 drop from 22 to 3" in readme
     assert "case 151's payload now reads 0.193 kg for 0.197 (-2 %, was -14 %)" in readme
     assert "(cases 29, 49, 109, 175, 199, 205), no in-sample play is lost" in readme
@@ -1438,10 +1441,10 @@ def test_stop26_confusion_matrix_and_parameter_errors_in_the_readme_are_the_benc
     sets = stop26["stop26"][0]
     rows = [r for k in ACC_SETS for r in sets[k][0]]
     s = bench_score(rows)
-    readme = " ".join(README.split())
+    readme = " ".join(STOP26_README.split())
     for kind, row in s["confusion"].items():
         line = _confusion_line("none (21 clean cases)" if kind == "none" else kind, row)
-        assert line in README, line
+        assert line in STOP26_README, line
     assert {k: v for k, v in s["false_names"].items() if v} == {
         "backlash": 16, "payload_change": 5, "joint_elasticity": 2, "thermal_drift": 1, "coupling": 1,
         "torque_offset": 1}
@@ -1508,7 +1511,7 @@ def test_stop26_fresh_cases_drawn_after_the_changes_in_the_readme_and_docs_are_t
              for k in ("cogging", "backlash", "joint_elasticity", "coupling", "thermal_drift")}
     assert kinds == {"cogging": (10, 10), "backlash": (8, 12), "joint_elasticity": (9, 12), "coupling": (3, 5),
                      "thermal_drift": (4, 5)}
-    readme = " ".join(README.split())
+    readme = " ".join(STOP26_README.split())
     assert ("**Fresh cases 320-359** (the hard kinds, drawn and recorded after this release's changes were final): "
             "**34 of 44 (77 %)**, 27 of 32 visible (84 %), **clean 6 of 6**, 4 false names; **the stop-25 code "
             "there: 35 of 44 (80 %)**, 5 false names.") in readme
@@ -1518,3 +1521,79 @@ def test_stop26_fresh_cases_drawn_after_the_changes_in_the_readme_and_docs_are_t
     assert ("by kind: cogging 10 of 10, backlash 8 of 12, joint elasticity 9 of 12, coupling 3 of 5, thermal drift "
             "4 of 5") in section
     assert "(with a false -0.03 kg payload)" in section
+
+
+# --- stop 27: a mass is one rigid body (the README's figures) --------------------------------------------------------
+def _stop27_section() -> str:
+    return " ".join(DOC[DOC.index("### 2026-11-26, stop 27:"):DOC.index("### 2026-11-26, stop 26:")].split())
+
+
+@pytest.fixture(scope="module")
+def stop27():
+    """{tag: (the four in-sample sets, (rows, score) of 320-359, (rows, score) of 360-389)} for this release and
+    the stop-26 code, on the same recordings."""
+    out = {}
+    for tag in ("stop27", "stop26"):
+        later = tuple(_scored(f"{name}-2026-11-26-{tag}") for name in ("fresh27", "fresh28"))
+        assert [[r["seed"] for r in rows] for rows, _ in later] == [list(range(320, 360)), list(range(360, 390))]
+        out[tag] = (_scored_sets(tag, "2026-11-26"),) + later
+    return out
+
+
+def test_stop27_rates_in_the_readme_are_the_benchmarks(stop27):
+    this, before = stop27["stop27"], stop27["stop26"]
+    assert _totals(this[0]) == (152, 186, 20, 21, 23) and _totals(before[0]) == (152, 186, 20, 21, 26)
+    _assert_rates(this[0], {"all": ((72, 83), (66, 68), (11, 11), 3), "fresh": ((25, 30), (24, 25), (3, 3), 3),
+                            "hard": ((36, 46), (34, 37), (3, 4), 12), "new": ((19, 27), (18, 21), (3, 3), 5)})
+    assert _rates(this[1][1]) == (34, 44, 27, 32, 6, 6, 3) and _false(before[1][1]) == 4
+    readme = " ".join(README.split())
+    assert ("**152 of 186 concealed effects (82 %, goal 90 %)** and nothing on **20 of 21 clean cases (95 %, goal "
+            "95 %)**, with **23 false names** (the stop-26 code on the same recordings: 152, 20 of 21, 26)") in readme
+    assert ("cases 0-71 **72 of 83 (87 %)**, clean 11 of 11; 72-95 25 of 30; the hard kinds 96-135 **36 of 46 "
+            "(78 %)**, clean 3 of 4; 136-159 **19 of 27 (70 %)**") in readme
+    assert "**34 of 44 (77 %)**, clean 6 of 6, **3 false names** (stop-26 code 4)" in readme
+    assert _rates(this[2][1]) == _rates(before[2][1]) == (26, 30, 23, 23, 5, 7, 0)
+    clean_named = sorted((r["seed"], f["kind"], f["joint"]) for r in this[2][0] if not r["effects"] for f in r["named"])
+    assert clean_named == [(373, "thermal_drift", 1), (375, "coupling", 5)]
+    assert {r["cycle_hz"] for r in this[2][0] if r["seed"] in (373, 375)} == {1000.0}
+    assert ("**26 of 30 (87 %)**, 23 of 23 visible, **clean 5 of 7** (a thermal drift on motor 2 and a coupling on "
+            "motor 6 named on two clean 1000 Hz cases, 373 and 375), no other false name; the stop-26 code names the "
+            "same on every case") in readme
+    assert [sorted((f["kind"], f["joint"]) for f in r["named"]) for r in this[2][0]] == \
+        [sorted((f["kind"], f["joint"]) for f in r["named"]) for r in before[2][0]]
+    assert "142 of the 151 visible effects are named" in readme
+    s = bench_score([r for k in ACC_SETS for r in this[0][k][0]])
+    for label, row in s["confusion"].items():
+        if sum(row.values()):
+            assert _confusion_line("none (21 clean cases)" if label == "none" else label, row) in README, label
+    named = {"backlash": "backlash", "payload_change": "payload", "joint_elasticity": "elasticity",
+             "thermal_drift": "thermal drift", "coupling": "coupling", "torque_offset": "torque offset"}
+    parts = ", ".join(f"{named[k]} {v}" for k, v in sorted(s["false_names"].items(), key=lambda kv: -kv[1]) if v)
+    assert f"(false names, 23): {parts}." in readme
+
+
+def test_stop27_changes_only_the_false_payloads_beside_a_rattle(stop27):
+    """Against the stop-26 code on the same 200 recordings (0-159, 320-359): exactly cases 49, 138, 147 and 339
+    change, each losing its negative payload on the hand and nothing else; case 20's stays."""
+    def named(row):
+        return sorted((f["kind"], f["joint"]) for f in row["named"])
+
+    def rows(sets):
+        return [r for k in ACC_SETS for r in sets[0][k][0]] + sets[1][0]
+
+    this, before = rows(stop27["stop27"]), rows(stop27["stop26"])
+    changed = {}
+    for x, y in zip(before, this):
+        assert x["seed"] == y["seed"] and x["effects"] == y["effects"]
+        if named(x) != named(y):
+            changed[x["seed"]] = (named(x), named(y))
+    assert set(changed) == {49, 138, 147, 339}
+    for was, now in changed.values():
+        assert [n for n in was if n != ("payload_change", 5)] == now and ("payload_change", 5) in was
+    lost = [f["effect"]["mass"] for r in before if r["seed"] in changed for f in r["named"]
+            if f["kind"] == "payload_change"]
+    assert all(m < 0 for m in lost)
+    case20 = next(r for r in this if r["seed"] == 20)
+    assert ("payload_change", 5) in named(case20)
+    readme = " ".join(README.split())
+    assert "exactly four cases change, each losing a false payload (49, 138, 147, 339); case 20's stays" in readme
