@@ -1011,6 +1011,11 @@ class AsymmetricFriction(Term):
         elif f_pos > 0 and f_neg > 0 and not big_enough:
             why = (f"directions differ by {abs(scale - 1):.0%} < {self.MIN_ASYMMETRY:.0%}: within what a torque zero "
                    f"drift and a Coulomb change together give")
+        elif not (f_pos > 0 and f_neg > 0):
+            # the viscous change refitted beside it can take the Coulomb level below zero (a real KUKA joint whose
+            # model has B = 0: scripts/bench_diagnose_real.py case 8), which is no friction law in either direction
+            why = (f"a Coulomb level refitted at or below zero ({f_pos:.3g} N*m forward, {f_neg:.3g} backward, beside "
+                   f"a viscous change of {coef[2]:+.3g} N*m*s/rad): not a friction asymmetry")
         else:
             why = "directions do not differ significantly"
         return ({"kind": self.kind, "joints": [j], "negative_scale": float(scale)},

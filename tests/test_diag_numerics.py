@@ -926,3 +926,20 @@ def test_a_rattle_on_a_loaded_joint_is_a_spring_where_the_link_lags_under_its_lo
     shaken = scored(JointElasticity(), 1, 1.0, 0.9, "backlash")
     assert "the same limit cycle" in BacklashRattle().already_found(rd, shaken, [got])
     assert BacklashRattle().already_found(rd, free, [got]) == ""
+
+
+def test_an_asymmetry_whose_refitted_coulomb_level_falls_below_zero_says_so():
+    """AsymmetricFriction.effect: a significant difference between the directions is refused, and said to be refused
+    for the right reason, where a refitted Coulomb level is at or below zero (the viscous change beside it took the
+    level: the real kuka_3 recording's joint 5 in scripts/bench_diagnose_real.py case 8); a plain asymmetry passes;
+    one that does not differ significantly is said so."""
+    from diagnosis.library import AsymmetricFriction
+
+    rd = SimpleNamespace(extra={"model": SimpleNamespace(friction_coulomb=np.array([0.98]))}, joints=["j1"])
+    term = AsymmetricFriction()
+    _, _, ok, why = term.effect(rd, 0, None, np.array([-1.1, -0.4, 0.9]), np.array([0.01, 0.01, 0.01]))
+    assert not ok and "Coulomb level refitted at or below zero" in why and "-0.12 N*m forward" in why
+    eff, _, ok, why = term.effect(rd, 0, None, np.array([0.0, 0.49, 0.0]), np.array([0.01, 0.01, 0.01]))
+    assert ok and why == "" and eff["negative_scale"] == pytest.approx(1.5)
+    _, _, ok, why = term.effect(rd, 0, None, np.array([0.0, 0.49, 0.0]), np.array([0.3, 0.3, 0.01]))
+    assert not ok and why == "directions do not differ significantly"
