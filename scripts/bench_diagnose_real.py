@@ -62,10 +62,6 @@ RECORDINGS = (2, 3)             # kuka_<which>; kuka_1 identified the model
 SIZE = (0.6, 2.5)               # effect RMS / clean residual RMS on its joint (torque band)
 
 
-def _sgn_moving(v):
-    return prove._sgn_moving(v)
-
-
 def _first_order(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
     """y' = (x - y) / tau from y(0) = 0, exact for x held over each step (the thermal rise)."""
     y = np.zeros_like(x)
@@ -75,24 +71,24 @@ def _first_order(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
     return y
 
 
-def effect_torque(e: dict, t, q, v, tau, fc, fv, urdf: Path, joints: list[str]) -> np.ndarray:
+def effect_torque(e: dict, t, q, v, ddq, tau, fc, fv, urdf: Path, joints: list[str]) -> np.ndarray:
     """The joint torque (N, n) effect ``e`` adds along the recorded motion (K = I: motor side too), unscaled for the
     sized kinds (scaled by ``e['scale']`` when present)."""
     out = np.zeros_like(q)
     j = e["joints"][0]
     k = e["kind"]
     if k == "payload_change":
-        return prove.payload_torque(urdf, joints, q, v, e["_ddq"], e["mass"], e["com"], link_joint=j)
+        return prove.payload_torque(urdf, joints, q, v, ddq, e["mass"], e["com"], link_joint=j)
     if k == "stribeck":
-        col = _sgn_moving(v[:, j]) * np.exp(-(np.abs(v[:, j]) / e["velocity"]) ** e["shape"])
+        col = prove._sgn_moving(v[:, j]) * np.exp(-(np.abs(v[:, j]) / e["velocity"]) ** e["shape"])
     elif k == "cogging":
         col = np.sin(e["periods_per_rev"] * q[:, j] + e["phase"])
     elif k == "asymmetric_friction":
         col = np.where(v[:, j] < -0.01, -(e["negative_scale"] - 1.0) * fc[j], 0.0)
     elif k == "load_dependent_friction":
-        col = np.abs(tau[:, j]) * _sgn_moving(v[:, j])
+        col = np.abs(tau[:, j]) * prove._sgn_moving(v[:, j])
     elif k == "thermal_drift":
-        f = fv[j] * v[:, j] + fc[j] * _sgn_moving(v[:, j])
+        f = fv[j] * v[:, j] + fc[j] * prove._sgn_moving(v[:, j])
         rise = _first_order(np.abs(f * v[:, j]), t, e["time_constant"])
         col = rise * f                                      # alpha * heating applied by the scale
     elif k == "torque_offset":
@@ -185,10 +181,7 @@ def sized(case: dict, ws: Workspace) -> tuple[list[dict], np.ndarray, list[float
     for e in case["effects"]:
         e = dict(e)
         j = e["joints"][0]
-        if e["kind"] == "payload_change":
-            e["_ddq"] = raw["accelerations"]
-        d = effect_torque(e, t, q, v, tau, ws.fc, ws.fv, ws.urdf, ws.joints)
-        e.pop("_ddq", None)
+        d = effect_torque(e, t, q, v, raw["accelerations"], tau, ws.fc, ws.fv, ws.urdf, ws.joints)
         if "size" in e:
             r = float(np.sqrt(np.mean(res[m[:, j], j] ** 2)))
             own = float(np.sqrt(np.mean(d[m[:, j], j] ** 2)))

@@ -77,7 +77,7 @@ def test_the_drawn_effects_are_sized_against_the_model_error():
     assert bench_real.SIZE[0] <= e["size"] <= bench_real.SIZE[1]
     t = np.linspace(0, 1, 50)
     q = np.zeros((50, 7))
-    d = bench_real.effect_torque({**e, "scale": 0.3}, t, q, q, q, np.ones(7), np.ones(7), None, [])
+    d = bench_real.effect_torque({**e, "scale": 0.3}, t, q, q, q, q, np.ones(7), np.ones(7), None, [])
     assert np.allclose(d[:, e["joints"][0]], 0.3 * e["sign"])
     assert np.count_nonzero(np.delete(d, e["joints"][0], axis=1)) == 0
 
