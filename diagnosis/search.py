@@ -89,6 +89,14 @@ def _rms(x: np.ndarray, m: np.ndarray) -> np.ndarray:
     return out
 
 
+def _worst_ratio(before: np.ndarray, after: np.ndarray) -> tuple[int, float]:
+    """(index, after / before) of the motor a term makes worst, per-motor sums of squares (a motor with nothing
+    before counts 1): what ``Term.max_worse_motor`` limits."""
+    ratio = np.where(before > 0, after / np.where(before > 0, before, 1.0), 1.0)
+    k = int(np.argmax(ratio))
+    return k, float(ratio[k])
+
+
 def _on_motors(cols: np.ndarray, motors: np.ndarray) -> np.ndarray:
     """A term acts only on the motors it was fitted on: zero its columns elsewhere."""
     out = np.zeros_like(cols)
@@ -351,11 +359,10 @@ class MismatchSearch:
         limit = s.term.max_worse_motor if s.term is not None else None
         if limit is not None and len(s.select_per_motor) == 3:
             motors, before, after = s.select_per_motor
-            ratio = np.where(before > 0, after / np.where(before > 0, before, 1.0), 1.0)
-            k = int(np.argmax(ratio))
-            if ratio[k] > limit:
+            k, ratio = _worst_ratio(before, after)
+            if ratio > limit:
                 motor = int(motors[k])
-                return (f"it makes motor {motor + 1}'s select residual {ratio[k]:.2g}x worse (sum of squares; > "
+                return (f"it makes motor {motor + 1}'s select residual {ratio:.2g}x worse (sum of squares; > "
                         f"{limit:g}x): one rigid body's torque explains every motor it loads, so what it explains on "
                         "the others is not that")
         return ""
@@ -669,10 +676,8 @@ class MismatchSearch:
         ix, coef = eq.solve(subset, ["fit_rows"])
         others = [q for q in subset if q != k]
         ix0, coef0 = eq.solve(others, ["fit_rows"]) if others else (np.array([], dtype=int), np.zeros(0))
-        with_k, without = eq.sse("select_rows", ix, coef), eq.sse("select_rows", ix0, coef0)
-        ratio = np.where(without > 0, with_k / np.where(without > 0, without, 1.0), 1.0)
-        m = int(np.argmax(ratio))
-        return (m, float(ratio[m])) if ratio[m] > limit else None
+        m, ratio = _worst_ratio(eq.sse("select_rows", ix0, coef0), eq.sse("select_rows", ix, coef))
+        return (m, ratio) if ratio > limit else None
 
     def _sequential_gains(self, rd, eq, order: list, keep: list, ix: np.ndarray, coef: np.ndarray,
                           w_safe: np.ndarray) -> None:
