@@ -1597,3 +1597,27 @@ def test_stop27_changes_only_the_false_payloads_beside_a_rattle(stop27):
     assert ("payload_change", 5) in named(case20)
     readme = " ".join(README.split())
     assert "exactly four cases change, each losing a false payload (49, 138, 147, 339); case 20's stays" in readme
+
+
+
+def test_stop28_subset_has_stop27s_names_and_the_readmes_masses():
+    """Stop 28 re-estimates the findings' coefficients (feasible weighted least squares) and chooses nothing: the 58
+    cases diagnosed again name exactly what stop 27's rows name; the README's payload-mass figures are their score."""
+    import numpy as np
+
+    rows, s = _scored("sub58-2026-11-26-stop28")
+    before = {}
+    for which in ("all", "fresh", "hard", "new"):
+        for r in _scored(f"{which}-2026-11-26-stop27")[0]:
+            before[r["seed"]] = r
+    assert len(rows) == 58
+    for r in rows:
+        assert [(f["kind"], f["joint"]) for f in r["named"]] == [(f["kind"], f["joint"])
+                                                               for f in before[r["seed"]]["named"]], r["seed"]
+    concealed = {r["seed"] for r in before.values() if any(e["kind"] == "payload_change" for e in r["effects"])}
+    assert concealed and concealed <= {r["seed"] for r in rows}     # every payload case of 0-159 is in the subset
+    errors = _rel_errors(s["param_errors"], "payload_change", "mass")
+    text = " ".join(README.split())
+    assert (f"the {len(errors)} payloads' masses within 5 % on {sum(e <= 5 for e in errors)} of them (median "
+            f"{np.median(errors):.1f} %; case 29 {_payload_error_pct(rows, 29)} %, at stop 27 "
+            f"{_payload_error_pct(list(before.values()), 29)} %)") in text

@@ -1,6 +1,6 @@
 """The real-data benchmark (scripts/bench_diagnose_real.py): randomised effects added to the real KUKA LWR4+
 recordings along their recorded motion, diagnosed with the plain command. The README's figures are what the script
-computes from its committed rows (docs/bench/diagnose-bench-real-2026-11-26-stop27.json), and the rows are what the
+computes from its committed rows (docs/bench/diagnose-bench-real-2026-11-26-stop28.json), and the rows are what the
 script makes: a few cases are drawn, synthesised and diagnosed again here and must name the same effects."""
 import importlib.util
 import json
@@ -14,7 +14,7 @@ from fixtures_id_sim import REAL
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
-ROWS = ROOT / "docs" / "bench" / "diagnose-bench-real-2026-11-26-stop27.json"
+ROWS = ROOT / "docs" / "bench" / "diagnose-bench-real-2026-11-26-stop28.json"
 
 
 def _script(name: str):
@@ -99,9 +99,9 @@ def test_committed_rows_are_what_the_bench_makes(kuka_diag, committed, tmp_path,
 
 
 def test_the_readme_fresh_real_cases_are_their_committed_rows():
-    """Seeds 60-119 (docs/bench/diagnose-bench-real-fresh-2026-11-26-stop27.json): the README's rates, false names
+    """Seeds 60-119 (docs/bench/diagnose-bench-real-fresh-2026-11-26-stop28.json): the README's rates, false names
     and payload-mass figures are bench_diagnose's score of those rows."""
-    rows = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-fresh-2026-11-26-stop27.json").read_text())["rows"]
+    rows = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-fresh-2026-11-26-stop28.json").read_text())["rows"]
     assert [r["seed"] for r in rows] == list(range(60, 120))
     s = bench_real.sim_bench.score(rows)
     text = " ".join(_readme_real_section().split())
@@ -119,3 +119,14 @@ def test_the_readme_fresh_real_cases_are_their_committed_rows():
     within = sum(e <= 10 for e in errors)
     assert (f"payload masses there {round(errors[0])} to {round(errors[-1])} % off, within 10 % on {within} of the "
             f"{len(errors)} named on their link") in text
+
+
+def test_the_readme_payload_masses_are_the_committed_rows(committed):
+    """Seeds 0-59: the README's payload-mass figures (stop 28: the findings re-estimated by feasible weighted least
+    squares) are bench_diagnose's score of the committed rows."""
+    _, s = committed
+    errors = sorted(100 * e["mass"]["rel_error"] for e in s["param_errors"]["payload_change"])
+    text = " ".join(_readme_real_section().split())
+    assert (f"Payload mass within 10 % on {sum(e <= 10 for e in errors)} of the {len(errors)} payloads named on their "
+            f"link, within 5 % on {sum(e <= 5 for e in errors)} (median {np.median(errors):.1f} %, max "
+            f"{errors[-1]:.1f} %;") in text
