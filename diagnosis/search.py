@@ -600,7 +600,7 @@ class MismatchSearch:
         old_wide = sum(_raw_torque(rd, s, s.fitted.coef) for s in order)
         b0 = res["low"] + old_low                      # what the terms together are fitted to (unweighted)
         coefs = [s.fitted.coef for s in order]
-        left = res["low"]
+        left, A = res["low"], None
         for _ in range(self.REWEIGHT_ROUNDS):
             rms = _rms(left, masks["fit_rows"])
             w = 1.0 / np.where(np.isfinite(rms) & (rms > 0), rms, 1.0)
@@ -608,7 +608,8 @@ class MismatchSearch:
             if coupled:                                # the load from the payload's last estimate
                 rd.extra["load_change"] = sum((_raw_torque(rd, order[k], coefs[k]) for k in keep
                                                if order[k].term.changes_load), np.zeros_like(b0))
-            A = np.concatenate([_band_columns(rd, s) for s in order], axis=2)
+            if coupled or A is None:                   # the columns change only with the load
+                A = np.concatenate([_band_columns(rd, s) for s in order], axis=2)
             eq = JointNormalEquations(A * w[None, :, None], b0 * w, masks, sizes)
             ix, coef = eq.solve(keep, ["fit_rows", "select_rows"])
             coefs = [coef[eq.edges[k]:eq.edges[k + 1]] for k in keep]
