@@ -344,3 +344,28 @@ def test_one_session_over_several_files(kuka, tmp_path):
     pay = [f for f in d["findings"] if f["kind"] == "payload_change"]
     assert pay and pay[0]["joint"] == "lwr_6_joint", d["verdict"]
     assert pay[0]["effect"]["mass"] == pytest.approx(prove.PAYLOAD_MASS, rel=0.10)
+
+
+def test_a_payload_within_the_models_own_uncertainty_is_no_finding(kuka, payload_200hz):
+    """PayloadChange.UNCERTAINTY_QUANTILE: clean kuka_2 holds a small hand reading of its own (about -0.034 kg, a
+    first moment of -0.014 kg m) that the 12 % floor passed once another effect was explained. Its change of the
+    model's base parameters is within their standard errors (chi-square under the 99 % point), so it is refused
+    with that reason; the 2 kg payload's is thousands of times over it and is named."""
+    from diagnosis.library import PayloadChange, payload_within_model
+    from diagnosis.residual import residual_data
+    from js2spec.log import read_log
+    from js2spec.model import load_model
+
+    mdl = load_model(kuka["model"])
+    lg = next(p for p in kuka["logs"] if p.stem.endswith("2"))
+    rd = residual_data(mdl, read_log(lg))
+    own = np.array([-0.034, 0.0019, -0.0137, -0.0026])        # m, m c_x, m c_y, m c_z on lwr_7_link (kg, kg m)
+    c2, dof, limit = payload_within_model(rd, 6, own)
+    assert dof > 4 and c2 < limit
+    eff, _, ok, why = PayloadChange().effect(rd, 6, None, own, np.full(4, 1e-4))
+    assert not ok and "within the model's own uncertainty" in why and f"over {dof}" in why
+    _, d = payload_200hz
+    found = next(f for f in d["findings"] if f["kind"] == "payload_change")
+    coef = np.r_[found["effect"]["mass"], found["effect"]["mass"] * np.asarray(found["effect"]["com"])]
+    c2, _, limit = payload_within_model(rd, 6, coef)
+    assert c2 > 100 * limit
