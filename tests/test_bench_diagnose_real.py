@@ -98,13 +98,18 @@ def test_committed_rows_are_what_the_bench_makes(kuka_diag, committed, tmp_path,
             assert a["effect"]["mass"] == pytest.approx(b["effect"]["mass"], rel=1e-3)
 
 
+def _committed_set(name: str, seeds) -> tuple[list, dict, str]:
+    """The committed rows docs/bench/diagnose-bench-NAME-2026-11-26-stop28.json (checked to be ``seeds``), their
+    score and the README's real-data section on one line."""
+    rows = json.loads((ROOT / "docs" / "bench" / f"diagnose-bench-{name}-2026-11-26-stop28.json").read_text())["rows"]
+    assert [r["seed"] for r in rows] == list(seeds)
+    return rows, bench_real.sim_bench.score(rows), " ".join(_readme_real_section().split())
+
+
 def test_the_readme_fresh_real_cases_are_their_committed_rows():
     """Seeds 60-119 (docs/bench/diagnose-bench-real-fresh-2026-11-26-stop28.json): the README's rates, false names
     and payload-mass figures are bench_diagnose's score of those rows."""
-    rows = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-fresh-2026-11-26-stop28.json").read_text())["rows"]
-    assert [r["seed"] for r in rows] == list(range(60, 120))
-    s = bench_real.sim_bench.score(rows)
-    text = " ".join(_readme_real_section().split())
+    rows, s, text = _committed_set("real-fresh", range(60, 120))
     assert (f"**On 60 further cases (seeds 60-119, drawn at stop 27 after that stop's diagnosis change was final): "
             f"{s['effects_found']} of {s['effects']} ({round(100 * s['effect_rate'])} %)**, clean "
             f"{s['clean_none']} of {s['clean']}, {sum(s['false_names'].values())} false names") in text
@@ -135,10 +140,7 @@ def test_the_readme_payload_masses_are_the_committed_rows(committed):
 def test_the_readme_new_real_cases_are_their_committed_rows():
     """Seeds 120-179 (docs/bench/diagnose-bench-real-new-2026-11-26-stop28.json), drawn after stop 28's changes: the
     README's rates, false names, payload masses and per-kind counts are bench_diagnose's score of those rows."""
-    rows = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-new-2026-11-26-stop28.json").read_text())["rows"]
-    assert [r["seed"] for r in rows] == list(range(120, 180))
-    s = bench_real.sim_bench.score(rows)
-    text = " ".join(_readme_real_section().split())
+    _, s, text = _committed_set("real-new", range(120, 180))
     assert (f"(seeds 120-179): {s['effects_found']} of {s['effects']} ({round(100 * s['effect_rate'])} %)**, clean "
             f"{s['clean_none']} of {s['clean']}, {sum(s['false_names'].values())} false names ("
             f"{s['false_names']['backlash']} backlashes") in text
