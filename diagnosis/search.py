@@ -536,7 +536,8 @@ class MismatchSearch:
             return ix, coef
 
         settle(["fit_rows"], 3)                        # every term in, the load settled on the fit rows
-        dropped = self._drop_confounded(rd, eq, order, keep)
+        dropped = self._drop_flipped(rd, eq, order, keep)
+        dropped += self._drop_confounded(rd, eq, order, keep)
         dropped += self._drop_weakest(rd, eq, order, keep, w_safe)
         ix, coef = settle(["fit_rows", "select_rows"], 2)   # the survivors on FIT + SELECT, as the ladder does
         std_all = eq.std(ix, coef, ["fit_rows", "select_rows"])
@@ -690,6 +691,36 @@ class MismatchSearch:
             out.append((order[k], "dropped after the search: with the other findings fitted together, "
                         + "; ".join(x for x in short if x)))
         return out
+
+    def _drop_flipped(self, rd, eq, order: list, keep: list) -> list:
+        """Payloads on two links that are one reading (``keep``: indices into ``order``; changed in place). Fitted
+        together on the fit rows, a payload whose mass takes the other sign than the ladder read for it was carried
+        by the other payload's columns: near the wrist's axes a point mass is nearly the same torque from either
+        link, and the pair trades mass between them. Real-data bench case 156 (2.39 kg on lwr_5_link): the ladder
+        read 1.31 kg on the hand, then 1.57 kg on lwr_5_link; fitted together -1.22 and +4.00 kg (reweighted: -2.61
+        and +5.13). The payload whose sign flips goes (the one that flips most first, until none does), and the
+        note says why. Returns (Scored, why) of the dropped."""
+        out = []
+        while True:
+            pays = [k for k in keep if order[k].fitted.kind == "payload_change"]
+            if len(pays) < 2:
+                return out
+            ix, coef = eq.solve(keep, ["fit_rows"])
+            at, worst = 0, None
+            for k in keep:
+                if k in pays:
+                    m0, m1 = float(order[k].fitted.coef[0]), float(coef[at])
+                    if m0 * m1 < 0 and (worst is None or abs(m1 - m0) > worst[1]):
+                        worst = (k, abs(m1 - m0), m0, m1)
+                at += len(order[k].fitted.coef)
+            if worst is None:
+                return out
+            k, _, m0, m1 = worst
+            keep.remove(k)
+            other = ", ".join(_link_name(rd, order[q].fitted.joint) for q in pays if q != k)
+            out.append((order[k], f"dropped after the search: fitted together with the payload on {other}, its mass "
+                        f"goes from {m0:.3g} to {m1:.3g} kg: the two links' readings are one point mass the data "
+                        "cannot split, and the other keeps its sign"))
 
     #: relative change of an accepted payload's mass, fitted together with and without a torque offset, above which
     #: the two are one reading the recording cannot split
