@@ -235,6 +235,25 @@ def test_docs_speed_figures_are_the_committed_bench_runs(runs_file):
     assert float(a1) < float(b1) and float(a2) < float(b2)
 
 
+def test_stop28_speed_figures_in_the_docs_are_the_committed_runs():
+    """docs/diagnosis.md's stop-28 speed paragraph: the totals, per-4-minute figures and ratios are what
+    scripts/bench_diagnose_speed.py printed in the committed runs (this release, then the stop-27 code, twice)."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    doc = " ".join((root / "docs/diagnosis.md").read_text().split())
+    got = {}
+    for tag in ("stop28", "stop28-before"):
+        runs = (root / "docs/bench" / f"diagnose-speed-2026-11-26-{tag}.txt").read_text()
+        got[tag] = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", runs, flags=re.M)
+        assert len(got[tag]) == 2
+    (a1, a1m, a1x), (a2, a2m, a2x) = got["stop28"]
+    (b1, _, b1x), (b2, _, b2x) = got["stop28-before"]
+    assert (f"this release {a1} / {a2} CPU s (per 4 minutes {a1m} / {a2m}: **{a1x}x / {a2x}x the 30 s goal, not "
+            f"met**), the stop-27 code {b1} / {b2} CPU s ({b1x}x / {b2x}x)") in doc
+
+
 def test_readme_speed_figures_are_this_releases_committed_runs():
     """The README's current speed figures are the totals scripts/bench_diagnose_speed.py printed in the three runs
     committed in docs/bench/diagnose-speed-2026-11-25.txt, and the verdict matches them (at the goal, not under it
