@@ -729,15 +729,11 @@ def _model_base_uncertainty(rd: ResidualData):
     bpm = raw.get("base_parameters") or {}
     names, std = bpm.get("names"), bpm.get("std")
     if names and std and len(names) == len(std) and getattr(rd.arm, "links", None):
-        offsets = raw.get("torque_offset") is not None
-        sqrt_viscous = (raw.get("friction") or {}).get("sqrt_viscous") is not None
-        tried = [(offsets, sqrt_viscous)] + [(o, v) for o in (True, False) for v in (False, True)
-                                             if (o, v) != (offsets, sqrt_viscous)]
-        for o, v in tried:
-            bp = base_parameters(rd.arm, offsets=o, sqrt_viscous=v)
-            if bp.names == list(names):
-                out = (bp.E, np.array([np.nan if x is None else x for x in std], float))
-                break
+        # the regressor's optional columns are each a base parameter of their own: the names say which were there
+        bp = base_parameters(rd.arm, offsets=any("off_" in x for x in names),
+                             sqrt_viscous=any("Bs_" in x for x in names))
+        if bp.names == list(names):
+            out = (bp.E, np.array([np.nan if x is None else x for x in std], float))
     rd.extra["base_uncertainty"] = out
     return out
 

@@ -101,6 +101,17 @@ def _band_columns(rd: ResidualData, s: "Scored") -> np.ndarray:
                                     s.term.motors(rd, s.fitted.joint)))
 
 
+def _stacked_band_columns(rd: ResidualData, order: list) -> np.ndarray:
+    """The band columns of the terms ``order`` side by side, (N, n, sum of their sizes)."""
+    return np.concatenate([_band_columns(rd, s) for s in order], axis=2)
+
+
+def _load_change(rd: ResidualData, order: list, keep: list, coefs: dict) -> np.ndarray:
+    """(N, n) the unfiltered torque of the terms ``keep`` that change the load (a payload's weight), at ``coefs``."""
+    return sum((_raw_torque(rd, order[k], coefs[k]) for k in keep if order[k].term.changes_load),
+               np.zeros((len(rd.t), rd.n)))
+
+
 def _worst_ratio(before: np.ndarray, after: np.ndarray) -> tuple[int, float]:
     """(index, after / before) of the motor a term makes worst, per-motor sums of squares (a motor with nothing
     before counts 1): what ``Term.max_worse_motor`` limits."""
@@ -501,14 +512,10 @@ class MismatchSearch:
         w_safe = np.where(w > 0, w, 1.0)
         masks = self._row_masks(rd)
 
-        def raw(s, coef):
-            return _raw_torque(rd, s, coef)
-
-        def band_cols(s):
-            return _band_columns(rd, s)
-
-        old_low = sum(band_cols(s) @ s.fitted.coef for s in order)
-        old_wide = sum(raw(s, s.fitted.coef) for s in order)
+        old_load = rd.extra.get("load_change")
+        A0 = _stacked_band_columns(rd, order)
+        old_low = A0 @ np.concatenate([s.fitted.coef for s in order])
+        old_wide = sum(_raw_torque(rd, s, s.fitted.coef) for s in order)
         b0 = res["low"] + old_low                      # what the joint terms together are fitted to
         b = b0 * w
         sizes = [len(s.fitted.coef) for s in order]
@@ -523,11 +530,10 @@ class MismatchSearch:
             nonlocal eq
             for _ in range(rounds if coupled else 1):
                 if coupled:
-                    rd.extra["load_change"] = sum((raw(order[k], coefs[k]) for k in keep
-                                                   if order[k].term.changes_load), np.zeros_like(b))
+                    rd.extra["load_change"] = _load_change(rd, order, keep, coefs)
                 if coupled or eq is None:              # the columns change only with the load
-                    A = np.concatenate([band_cols(s) for s in order], axis=2) * w[None, :, None]
-                    eq = JointNormalEquations(A, b, masks, sizes)
+                    A = _stacked_band_columns(rd, order) if coupled else A0
+                    eq = JointNormalEquations(A * w[None, :, None], b, masks, sizes)
                 ix, coef = eq.solve(keep, parts)
                 at = 0
                 for k in keep:
@@ -540,33 +546,47 @@ class MismatchSearch:
         dropped += self._drop_confounded(rd, eq, order, keep)
         dropped += self._drop_weakest(rd, eq, order, keep, w_safe)
         ix, coef = settle(["fit_rows", "select_rows"], 2)   # the survivors on FIT + SELECT, as the ladder does
-        std_all = eq.std(ix, coef, ["fit_rows", "select_rows"])
-        refits, at = {}, 0
+        new_low = (eq.A[:, :, ix] @ coef) / w_safe[None, :]
+        # the new model: the survivors' torque in both bands in place of every joint term's (unless implausible)
+        if not self._adopt(rd, res, order, keep, coef, eq.std(ix, coef, ["fit_rows", "select_rows"]), new_low,
+                           b0, old_low, old_wide, old_load):
+            return
+        for s, why in dropped:
+            (self.references_ if s.term.reference else self.accepted_).remove(s)
+            self.dropped_.append((s, why))
+        self._sequential_gains(rd, eq, order, keep, ix, coef, w_safe)
+
+    def _adopt(self, rd: ResidualData, res: dict, order: list, keep: list, coef: np.ndarray, std: np.ndarray,
+               new_low: np.ndarray, b0: np.ndarray, old_low: np.ndarray, old_wide: np.ndarray, old_load) -> bool:
+        """The terms ``keep`` (indices into ``order``) estimated together at ``coef`` (their columns in that order,
+        standard errors ``std``, torque-band torque ``new_low``) in place of every term of ``order``, whose torque
+        was ``old_low`` / ``old_wide`` on the residual ``b0``: their findings, the residual and the corrections in
+        both bands. False, and nothing changed (the load the terms read put back to ``old_load``), when a term's
+        parameters come out implausible."""
+        fits, at = {}, 0
         for k in keep:
             s = order[k]
-            c, sd = coef[at:at + sizes[k]], std_all[at:at + sizes[k]]
-            at += sizes[k]
-            eff, summary, ok, why = s.term.effect(rd, s.fitted.joint, s.fitted.hyper, c, sd)
-            if not ok:                                 # an implausible refit: the ladder's reading stands
-                rd.extra.pop("load_change", None)
-                return
-            refits[k] = (c, sd, eff, summary)
-        # the new model: the survivors' torque in both bands in place of every joint term's
-        for k, (c, sd, eff, summary) in refits.items():
+            c, sd = coef[at:at + len(s.fitted.coef)], std[at:at + len(s.fitted.coef)]
+            at += len(s.fitted.coef)
+            eff, summary, ok, _ = s.term.effect(rd, s.fitted.joint, s.fitted.hyper, c, sd)
+            if not ok:
+                if old_load is None:
+                    rd.extra.pop("load_change", None)
+                else:
+                    rd.extra["load_change"] = old_load
+                return False
+            fits[k] = (c, sd, eff, summary)
+        for k, (c, sd, eff, summary) in fits.items():
             s = order[k]
             s.fitted = Fitted(kind=s.fitted.kind, joint=s.fitted.joint, hyper=s.fitted.hyper, coef=c, coef_std=sd,
                               effect=eff, summary=summary + (f" ({s.note})" if s.note else ""), plausible=True,
                               why_not="")
-        for s, why in dropped:
-            (self.references_ if s.term.reference else self.accepted_).remove(s)
-            self.dropped_.append((s, why))
-        new_wide = sum(raw(order[k], order[k].fitted.coef) for k in keep)
-        new_low = (eq.A[:, :, ix] @ coef) / w_safe[None, :]
+        new_wide = sum(_raw_torque(rd, order[k], order[k].fitted.coef) for k in keep)
         res["low"] = b0 - new_low
         res["wide"] = res["wide"] + old_wide - new_wide
         self.corrections_["low"] += new_low - old_low
         self.corrections_["wide"] += new_wide - old_wide
-        self._sequential_gains(rd, eq, order, keep, ix, coef, w_safe)
+        return True
 
     #: rounds of reweighting in :meth:`_reweighted_estimate`
     REWEIGHT_ROUNDS = 3
@@ -597,46 +617,26 @@ class MismatchSearch:
         keep = list(range(len(order)))
         coupled = any(s.term.uses_load for s in order) and any(s.term.changes_load for s in order)
         old_load = rd.extra.get("load_change")
-        old_low = sum(_band_columns(rd, s) @ s.fitted.coef for s in order)
+        A0 = A = _stacked_band_columns(rd, order)
+        old_low = A0 @ np.concatenate([s.fitted.coef for s in order])
         old_wide = sum(_raw_torque(rd, s, s.fitted.coef) for s in order)
         b0 = res["low"] + old_low                      # what the terms together are fitted to (unweighted)
-        coefs = [s.fitted.coef for s in order]
-        left, A = res["low"], None
+        coefs = {k: s.fitted.coef for k, s in enumerate(order)}
+        left = res["low"]
         for _ in range(self.REWEIGHT_ROUNDS):
             rms = _rms(left, masks["fit_rows"])
             w = 1.0 / np.where(np.isfinite(rms) & (rms > 0), rms, 1.0)
             w = np.where(w0 > 0, w, 0.0)               # a motor the search leaves out stays out
-            if coupled:                                # the load from the payload's last estimate
-                rd.extra["load_change"] = sum((_raw_torque(rd, order[k], coefs[k]) for k in keep
-                                               if order[k].term.changes_load), np.zeros_like(b0))
-            if coupled or A is None:                   # the columns change only with the load
-                A = np.concatenate([_band_columns(rd, s) for s in order], axis=2)
+            if coupled:                                # the load from the payload's last estimate; the columns with it
+                rd.extra["load_change"] = _load_change(rd, order, keep, coefs)
+                A = _stacked_band_columns(rd, order)
             eq = JointNormalEquations(A * w[None, :, None], b0 * w, masks, sizes)
             ix, coef = eq.solve(keep, ["fit_rows", "select_rows"])
-            coefs = [coef[eq.edges[k]:eq.edges[k + 1]] for k in keep]
+            coefs = {k: coef[eq.edges[k]:eq.edges[k + 1]] for k in keep}
             left = b0 - A @ coef
-        std_all = eq.std(ix, coef, ["fit_rows", "select_rows"])
-        refits = []
-        for k, s in enumerate(order):
-            c, sd = coefs[k], std_all[eq.edges[k]:eq.edges[k + 1]]
-            eff, summary, ok, why = s.term.effect(rd, s.fitted.joint, s.fitted.hyper, c, sd)
-            if not ok:                                 # implausible: the search's reading stands
-                if old_load is None:
-                    rd.extra.pop("load_change", None)
-                else:
-                    rd.extra["load_change"] = old_load
-                return
-            refits.append((c, sd, eff, summary))
-        for s, (c, sd, eff, summary) in zip(order, refits):
-            s.fitted = Fitted(kind=s.fitted.kind, joint=s.fitted.joint, hyper=s.fitted.hyper, coef=c, coef_std=sd,
-                              effect=eff, summary=summary + (f" ({s.note})" if s.note else ""),
-                              plausible=True, why_not="")
-        new_low = A @ coef
-        new_wide = sum(_raw_torque(rd, s, s.fitted.coef) for s in order)
-        res["low"] = b0 - new_low
-        res["wide"] = res["wide"] + old_wide - new_wide
-        self.corrections_["low"] += new_low - old_low
-        self.corrections_["wide"] += new_wide - old_wide
+        if not self._adopt(rd, res, order, keep, coef, eq.std(ix, coef, ["fit_rows", "select_rows"]), A @ coef,
+                           b0, old_low, old_wide, old_load):
+            return                                     # implausible: the search's reading stands
         # the report's figures with the search's weights (one definition of a gain for every finding)
         eq0 = JointNormalEquations(A * w0[None, :, None], b0 * w0, masks, sizes)
         self._sequential_gains(rd, eq0, order, keep, ix, coef, w0_safe)
@@ -702,22 +702,17 @@ class MismatchSearch:
         note says why. Returns (Scored, why) of the dropped."""
         out = []
         while True:
-            pays = [k for k in keep if order[k].fitted.kind == "payload_change"]
-            if len(pays) < 2:
+            together = self._payload_masses(eq, order, keep)
+            if len(together) < 2:
                 return out
-            ix, coef = eq.solve(keep, ["fit_rows"])
-            at, worst = 0, None
-            for k in keep:
-                if k in pays:
-                    m0, m1 = float(order[k].fitted.coef[0]), float(coef[at])
-                    if m0 * m1 < 0 and (worst is None or abs(m1 - m0) > worst[1]):
-                        worst = (k, abs(m1 - m0), m0, m1)
-                at += len(order[k].fitted.coef)
-            if worst is None:
+            flipped = [(abs(m1 - order[k].fitted.coef[0]), k) for k, m1 in together.items()
+                       if order[k].fitted.coef[0] * m1 < 0]
+            if not flipped:
                 return out
-            k, _, m0, m1 = worst
+            k = max(flipped)[1]
+            m0, m1 = float(order[k].fitted.coef[0]), together[k]
             keep.remove(k)
-            other = ", ".join(_link_name(rd, order[q].fitted.joint) for q in pays if q != k)
+            other = ", ".join(_link_name(rd, order[q].fitted.joint) for q in together if q != k)
             out.append((order[k], f"dropped after the search: fitted together with the payload on {other}, its mass "
                         f"goes from {m0:.3g} to {m1:.3g} kg: the two links' readings are one point mass the data "
                         "cannot split, and the other keeps its sign"))
@@ -736,24 +731,14 @@ class MismatchSearch:
         is dropped (the one that moves it most first, until none does): the one physical term that explains every
         motor is kept, and the note says why. Returns (Scored, why) of the dropped."""
         out = []
-
-        def masses(subset):
-            ix, coef = eq.solve(subset, ["fit_rows"])
-            at, m = 0, {}
-            for k in subset:
-                if order[k].term.changes_load and order[k].fitted.kind == "payload_change":
-                    m[k] = float(coef[at])
-                at += len(order[k].fitted.coef)
-            return m
-
         while len(keep) > 1:
             offsets = [k for k in keep if order[k].fitted.kind == "torque_offset"]
-            with_all = masses(keep)
+            with_all = self._payload_masses(eq, order, keep)
             if not offsets or not with_all:
                 break
             worst = None
             for k in offsets:
-                without = masses([q for q in keep if q != k])
+                without = self._payload_masses(eq, order, [q for q in keep if q != k])
                 for p, m1 in with_all.items():
                     m0 = without[p]
                     swing = abs(m1 - m0) / max(abs(m0), 1e-12)
@@ -779,6 +764,18 @@ class MismatchSearch:
                         f"({change:+.0%}): on this motion a constant torque and the payload's weight are one reading, "
                         "and the payload explains every motor"))
         return out
+
+    @staticmethod
+    def _payload_masses(eq, order: list, subset: list) -> dict:
+        """{k: mass} of the payloads among the terms ``subset`` (indices into ``order``), fitted together on the fit
+        rows."""
+        ix, coef = eq.solve(subset, ["fit_rows"])
+        at, m = 0, {}
+        for k in subset:
+            if order[k].term.changes_load and order[k].fitted.kind == "payload_change":
+                m[k] = float(coef[at])
+            at += len(order[k].fitted.coef)
+        return m
 
     @staticmethod
     def _worse_motor(eq, subset: list, k: int, order: list):
