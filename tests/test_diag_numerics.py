@@ -943,3 +943,25 @@ def test_an_asymmetry_whose_refitted_coulomb_level_falls_below_zero_says_so():
     assert ok and why == "" and eff["negative_scale"] == pytest.approx(1.5)
     _, _, ok, why = term.effect(rd, 0, None, np.array([0.0, 0.49, 0.0]), np.array([0.3, 0.3, 0.01]))
     assert not ok and why == "directions do not differ significantly"
+
+
+def test_a_simulated_play_beside_a_negative_spring_is_no_contact():
+    """Backlash.effect: the simulated play's scale near 1 is not enough; the contact spring's compliance beside it
+    must not be significantly negative (the real-data bench's false plays beside a payload: lwr_3_joint, -0.0043 +-
+    0.00024 rad/(N*m) in case 123). Within its noise, or positive (every true play on the simulator bench), the
+    reading stands; the scale test is unchanged."""
+    from diagnosis.library import Backlash
+
+    rd = SimpleNamespace(joints=["j1"], extra={"link_response": {0: (np.zeros((10, 1)), [(0.005, 182.0, 5.8)])}})
+    term = Backlash()
+
+    def read(scale, compliance, std):
+        effect, summary, ok, why = term.effect(rd, 0, 0, np.array([scale, compliance]), np.array([0.05, std]))
+        return ok, why
+
+    ok, why = read(1.19, -0.0043, 0.00024)
+    assert not ok and "negative compliance" in why and "-0.0043" in why
+    assert read(1.19, -0.0004, 0.00024) == (True, "")          # within 3 std of zero
+    assert read(0.62, 0.00275, 0.00002) == (True, "")          # a true play's reading (simulator case 321)
+    ok, why = read(2.95, 0.001, 0.0001)
+    assert not ok and "scale 2.95" in why
