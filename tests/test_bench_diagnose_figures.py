@@ -1621,3 +1621,29 @@ def test_stop28_subset_has_stop27s_names_and_the_readmes_masses():
     assert (f"the {len(errors)} payloads' masses within 5 % on {sum(e <= 5 for e in errors)} of them (median "
             f"{np.median(errors):.1f} %; case 29 {_payload_error_pct(rows, 29)} %, at stop 27 "
             f"{_payload_error_pct(list(before.values()), 29)} %)") in text
+
+
+def test_stop29_subset_changes_only_case_106():
+    """Stop 29 (Backlash.effect refuses a significantly negative spring): the 16 simulator cases whose stop-27 rows
+    name a play of the simulated-play term, diagnosed again, name what stop 27 named, except case 106, which loses its
+    two false plays on motors 4 and 5 (joints 3 and 4) and nothing else; the README says so."""
+    rows, s = _scored("sub16-2026-11-27-stop29")
+    before = {}
+    for which in ("all", "fresh", "hard", "new", "fresh27"):
+        for r in _scored(f"{which}-2026-11-26-stop27")[0]:
+            before[r["seed"]] = r
+    assert len(rows) == 16
+    changed = {}
+    for r in rows:
+        was = [(f["kind"], f["joint"]) for f in before[r["seed"]]["named"]]
+        now = [(f["kind"], f["joint"]) for f in r["named"]]
+        assert r["effects"] == before[r["seed"]]["effects"]
+        if was != now:
+            changed[r["seed"]] = (was, now)
+    assert set(changed) == {106}
+    was, now = changed[106]
+    assert [n for n in was if n not in (("backlash", 3), ("backlash", 4))] == now and len(was) == len(now) + 2
+    assert not any(e["kind"] == "backlash" and e["joints"][0] in (3, 4) for e in before[106]["effects"])
+    readme = " ".join(README.split())
+    assert "**only case 106 changes**, losing two false plays" in readme
+    assert "So the 23 false names below are 21 with this release." in readme
