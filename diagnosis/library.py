@@ -905,13 +905,16 @@ class ThermalDrift(Term):
             cache[(j, source)] = heat
         return cache[(j, source)]
 
+    def _heat(self, rd, j, h) -> np.ndarray:
+        """(N,) K: the temperature rise with a heating of 1 (K/A^2, K/W), the heat source through the lag ``h``."""
+        tc, source = h
+        a = np.exp(-1.0 / (rd.fs * tc))
+        return lfilter([1 - a], [1, -a], self.heat_input(rd, j, source))
+
     def _heat_column(self, rd, j, h) -> np.ndarray:
         """Column 0 of :meth:`columns` on motor j, (N,): the heat source through the thermal lag, times the model's
         friction."""
-        tc, source = h
-        a = np.exp(-1.0 / (rd.fs * tc))
-        heat = lfilter([1 - a], [1, -a], self.heat_input(rd, j, source))   # K with a heating of 1 (K/A^2, K/W)
-        return heat * np.nan_to_num(rd.friction_pred[:, j]) * _sliding(rd, j)
+        return self._heat(rd, j, h) * np.nan_to_num(rd.friction_pred[:, j]) * _sliding(rd, j)
 
     def columns(self, rd, j, h):
         col = np.zeros((len(rd.t), rd.n, 3))
@@ -967,9 +970,26 @@ class ThermalDrift(Term):
             X[:, 1:] = shared
             yield h, X
 
+    #: The smallest change of the friction (relative, largest over the recording) a drift must make to be named.
+    #: The model's friction, from the sequential tests, and a recording of another moment differ by a few % anyway
+    #: (the refit null is there for that): a drift of 1 % is not told from them. The false drifts the simulator bench
+    #: named, at the grid's fastest lag, changed the friction by 0.3-1.5 % (clean cases 132, 373, fresh 400; case
+    #: 131); the true ones it named by 18-1250 % (one invisible drift read at 1.2 %, case 37); the real-data bench's
+    #: by 35 % and more
+    MIN_CHANGE = 0.05
+
+    def change(self, rd, j, h, coef) -> float:
+        """The largest relative change of motor j's friction the drift ``coef`` (lag ``h``) makes over the recording
+        (on the rows its motor's residual is defined)."""
+        heat = self._heat(rd, j, h)
+        rows = rd.mask[:, j]
+        return float(np.max(np.abs(coef[0] * heat[rows]))) if rows.any() else 0.0
+
     def effect(self, rd, j, h, coef, std):
         tc, source = h
         ok = abs(coef[0]) > 3 * std[0]
+        change = self.change(rd, j, h, coef) if ok else 0.0
+        small = ok and change < self.MIN_CHANGE
         copper = source == "current_squared"
         eff = {"kind": self.kind, "joints": [j], "heating": 1.0 if copper else 0.0, "time_constant": float(tc),
                "friction_per_kelvin": float(coef[0])}
@@ -986,9 +1006,12 @@ class ThermalDrift(Term):
                f"the recording)" if slowest else f"first-order, {tc:.3g} s")
         why = ("drift not significant" if not ok else
                "the lag is at the slowest time constant tried (4x the recording): a ramp over the recording, which "
-               "any slow trend fits as well, not a resolved thermal lag" if slowest else "")
-        return (eff, f"friction changes by {coef[0]:+.3g} per {per} ({lag}) heating: it drifts as the "
-                     f"{'winding' if copper else 'drive train'} warms", ok and not slowest, why)
+               "any slow trend fits as well, not a resolved thermal lag" if slowest else
+               f"the friction changes by {change:.1%} at most over the recording (< {self.MIN_CHANGE:.0%}): the "
+               "model's friction and a recording of another moment differ by that much anyway" if small else "")
+        return (eff, f"friction changes by {coef[0]:+.3g} per {per} ({lag}) heating, {change:.0%} at most over the "
+                     f"recording: it drifts as the {'winding' if copper else 'drive train'} warms",
+                ok and not slowest and not small, why)
 
 
 def _load(rd: ResidualData) -> np.ndarray:
