@@ -975,7 +975,7 @@ class ThermalDrift(Term):
     #: (the refit null is there for that): a drift of 1 % is not told from them. The false drifts the simulator bench
     #: named, at the grid's fastest lag, changed the friction by 0.3-1.5 % (clean cases 132, 373, fresh 400; case
     #: 131); the true ones it named by 18-1250 % (one invisible drift read at 1.2 %, case 37); the real-data bench's
-    #: by 35 % and more
+    #: by 37 % and more
     MIN_CHANGE = 0.05
 
     def change(self, rd, j, h, coef) -> float:

@@ -1646,4 +1646,57 @@ def test_stop29_subset_changes_only_case_106():
     assert not any(e["kind"] == "backlash" and e["joints"][0] in (3, 4) for e in before[106]["effects"])
     readme = " ".join(README.split())
     assert "**only case 106 changes**, losing two false plays" in readme
-    assert "So the 23 false names below are 21 with this release." in readme
+    assert "So the 23 false names below are 21 with this change." in readme
+
+
+def _stop29_rows(names=("all", "fresh", "hard", "new"), tag: str = "2026-11-26-stop27") -> list:
+    """Stop 27's rows of the sets ``names`` with the cases stop 29 diagnosed again in their place: the 16 whose
+    rows name a simulated play (sub16, the first change alone) and the 36 whose rows name a thermal drift (sub36,
+    this release; it wins where both hold a case)."""
+    again = {r["seed"]: r for r in _scored("sub16-2026-11-27-stop29")[0]}
+    again.update({r["seed"]: r for r in _scored("sub36-2026-11-27-stop29")[0]})
+    return [again.get(r["seed"], r) for name in names for r in _scored(f"{name}-{tag}")[0]]
+
+
+def test_stop29_thermal_floor_changes_only_four_cases_and_the_readmes_rates():
+    """ThermalDrift.MIN_CHANGE: of the 36 simulator cases whose stop-27 rows name a thermal drift, diagnosed again,
+    exactly 131, 132, 373 (false drifts) and 37 (an invisible true one) change, each losing its drift and nothing
+    else; the README's in-sample rates and the 360-389 clean rate follow from the rows."""
+    rows, _ = _scored("sub36-2026-11-27-stop29")
+    before = {}
+    for which in ("all", "fresh", "hard", "new", "fresh27", "fresh28"):
+        for r in _scored(f"{which}-2026-11-26-stop27")[0]:
+            before[r["seed"]] = r
+    assert len(rows) == 36
+    changed = {}
+    for r in rows:
+        was = sorted((f["kind"], f["joint"]) for f in before[r["seed"]]["named"])
+        now = sorted((f["kind"], f["joint"]) for f in r["named"])
+        assert any(k == "thermal_drift" for k, _ in was)
+        if was != now:
+            changed[r["seed"]] = (was, now)
+    assert set(changed) == {37, 131, 132, 373}
+    for was, now in changed.values():
+        assert [n for n in was if n[0] != "thermal_drift"] == now and len(was) == len(now) + 1
+    s = bench_score(_stop29_rows())
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == (151, 186, 21, 21, 20)
+    later = _stop29_rows(("fresh28",))
+    assert (bench_score(later)["clean_none"], bench_score(later)["clean"]) == (6, 7)
+    readme = " ".join(README.split())
+    assert "**only 131, 132, 373 and 37 change**: in sample **151 of 186 (81 %), clean 21 of 21, 20 false names**; " \
+           "360-389 clean **6 of 7**" in readme
+
+
+def test_stop29_fresh_cases_390_419_are_the_readmes():
+    """Cases 390-419, drawn after stop 29's first change: the README's rates are the committed rows' score; the
+    rows before the thermal floor differ only in case 400's false drift."""
+    rows, s = _scored("fresh29-2026-11-27-stop29")
+    pre, s0 = _scored("fresh29-2026-11-27-stop29-before")
+    assert [r["seed"] for r in rows] == [r["seed"] for r in pre] == list(range(390, 420))
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == (29, 33, 4, 4, 6)
+    assert s["false_names"]["torque_offset"] == 4 and _false(s0) == 7 and s0["false_names"]["thermal_drift"] == 1
+    diff = [r["seed"] for r, q in zip(rows, pre) if [(f["kind"], f["joint"]) for f in r["named"]]
+            != [(f["kind"], f["joint"]) for f in q["named"]]]
+    assert diff == [400]
+    readme = " ".join(README.split())
+    assert "**29 of 33 (88 %)**, clean **4 of 4**, 6 false names (4 torque offsets" in readme
