@@ -157,17 +157,23 @@ def test_the_readme_new_real_cases_are_their_committed_rows():
         assert f"{word} {row[kind]} of {sum(row.values())}" in text, kind
 
 
+def _new_case_again(seed: int, kuka_diag, tmp_path) -> tuple[dict, dict, dict]:
+    """(case, committed row, the row made again) of seed ``seed`` of the newest real set (120-179): drawn again
+    (checked to be the committed case), synthesised and diagnosed with this code."""
+    rows, _, _ = _committed_set("real-new", range(120, 180))
+    row = next(r for r in rows if r["seed"] == seed)
+    ws = bench_real.Workspace(REAL, tmp_path, logs=kuka_diag["work"], model=kuka_diag["model"])
+    case = bench_real.draw_case(seed, len(ws.joints))
+    assert case == row["case"]
+    return case, row, bench_real.run_case(case, ws, tmp_path)
+
+
 @pytest.mark.skipif(not (REAL / "kuka_lwr4").is_dir(), reason=f"real-arm recordings not found at {REAL}")
 def test_two_payload_readings_that_trade_mass_are_one_point(kuka_diag, tmp_path):
     """MismatchSearch._drop_flipped (stop 28): case 156 hides 2.39 kg on lwr_5_link. The ladder reads 1.31 kg on the
     hand, then 1.57 kg on lwr_5_link; fitted together the hand's mass changes sign (-1.22 kg beside +4.00), so the
     hand's reading goes and one payload is named on lwr_5_link within 10 % (it was +5.13 and -2.61 kg before)."""
-    rows, _, _ = _committed_set("real-new", range(120, 180))
-    row = next(r for r in rows if r["seed"] == 156)
-    ws = bench_real.Workspace(REAL, tmp_path, logs=kuka_diag["work"], model=kuka_diag["model"])
-    case = bench_real.draw_case(156, len(ws.joints))
-    assert case == row["case"]
-    again = bench_real.run_case(case, ws, tmp_path)
+    case, row, again = _new_case_again(156, kuka_diag, tmp_path)
     assert [(f["kind"], f["joint"]) for f in again["named"]] == [("payload_change", 4)]
     true = next(e["mass"] for e in case["effects"] if e["kind"] == "payload_change")
     assert again["named"][0]["effect"]["mass"] == pytest.approx(true, rel=0.10)
@@ -199,12 +205,7 @@ def test_no_play_beside_kuka_3s_payload(kuka_diag, tmp_path):
     """Stop 29 (Backlash.effect): seed 123 hides 2 kg on kuka_3's hand and a Stribeck hump on lwr_3; stop 28 named a
     play on lwr_3_joint beside the payload (a soft simulated contact with -0.0043 rad/(N*m) of spring). Drawn,
     synthesised and diagnosed again: the payload alone, on the hand, within 5 %, as the committed row says."""
-    rows, _, _ = _committed_set("real-new", range(120, 180))
-    row = next(r for r in rows if r["seed"] == 123)
-    ws = bench_real.Workspace(REAL, tmp_path, logs=kuka_diag["work"], model=kuka_diag["model"])
-    case = bench_real.draw_case(123, len(ws.joints))
-    assert case == row["case"]
-    again = bench_real.run_case(case, ws, tmp_path)
+    case, row, again = _new_case_again(123, kuka_diag, tmp_path)
     assert [(f["kind"], f["joint"]) for f in again["named"]] == [("payload_change", 6)] == \
         [(f["kind"], f["joint"]) for f in row["named"]]
     true = next(e["mass"] for e in case["effects"] if e["kind"] == "payload_change")
