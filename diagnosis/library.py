@@ -1009,8 +1009,9 @@ class ThermalDrift(Term):
                "any slow trend fits as well, not a resolved thermal lag" if slowest else
                f"the friction changes by {change:.1%} at most over the recording (< {self.MIN_CHANGE:.0%}): the "
                "model's friction and a recording of another moment differ by that much anyway" if small else "")
-        return (eff, f"friction changes by {coef[0]:+.3g} per {per} ({lag}) heating, {change:.0%} at most over the "
-                     f"recording: it drifts as the {'winding' if copper else 'drive train'} warms",
+        over = f", {change:.0%} at most over the recording" if ok else ""
+        return (eff, f"friction changes by {coef[0]:+.3g} per {per} ({lag}) heating{over}: it drifts as the "
+                     f"{'winding' if copper else 'drive train'} warms",
                 ok and not slowest and not small, why)
 
 
@@ -1522,8 +1523,9 @@ class Backlash(_Compliance):
         a payload they take the part of its torque the payload's reading leaves. Every false play this term named
         beside a payload on the real-data bench (10: lwr_3_joint, 182 N*m/rad, -0.0025 to -0.0060 rad/(N*m), 5 to
         35 of its std; lwr_1_joint, -0.0006 to -0.0009) and on the real kuka_3 recording with 2 kg on the hand
-        (-0.0042 +- 0.0002) read that way, as did three on the simulator bench (case 106 motors 4 and 5, case 84
-        motor 3). The 11 true plays it named on the stop-27 simulator rows read +0.0020 to +0.0063."""
+        (-0.0042 +- 0.0002) read that way, as did three on the simulator bench (case 106 motors 4 and 5, now
+        refused; case 84 motor 3, whose search reading was within 3 std of zero, stays). The 11 true plays it named
+        on the stop-27 simulator rows read +0.0020 to +0.0063."""
         b, k, d = _link_response(rd, j)[1][int(h)]
         scale_ok = 0.3 < coef[0] < 1.7 and coef[0] > 3 * std[0]
         spring_ok = coef[1] > -3 * std[1]
