@@ -1064,6 +1064,15 @@ class AsymmetricFriction(Term):
     Coulomb friction also gives (a clean real KUKA recording showed 10 %)."""
     kind, extends = "asymmetric_friction", ("torque_offset", "friction_refit")
     MIN_ASYMMETRY = 0.15
+    #: The directions' Coulomb levels may differ by at most this factor; beyond it the reading is an offset or a model
+    #: error, reported unexplained. 2 until stop 30. The real-data bench scales a joint's backward Coulomb friction by
+    #: 0.4-0.7 (or 1.3-2.0) of the model's on recordings whose own friction differs from the model's: kuka_3's lwr_5
+    #: halved backwards (seeds 8, 52) reads 2.7:1 and 2.5:1 (backward / forward 0.375 and 0.398), kuka_2's lwr_2 at
+    #: 1.75x backwards 2.1:1 (seed 41); each was refused and a torque offset named instead. At 3:1 the three are named;
+    #: two true torque offsets on kuka_3's lwr_4 (seeds 21, 38: 2.3:1 and 2.5:1 read around the offset) are named an
+    #: asymmetry instead. Over the 180 real and 260 simulator cases diagnosed again nothing else changes
+    #: (docs/diagnosis.md, stop 30).
+    MAX_RATIO = 3.0
 
     def columns(self, rd, j, h):
         # [w > 0], -[w < 0] and the viscous column w of the refit it must beat: nested in friction_refit, so the
@@ -1081,13 +1090,14 @@ class AsymmetricFriction(Term):
         f_pos, f_neg = fc + coef[0], fc + coef[1]
         scale = f_neg / f_pos if f_pos > 0 else float("nan")
         diff_std = float(np.hypot(std[0], std[1]))
-        in_range = 0.5 <= scale <= 2
+        in_range = 1 / self.MAX_RATIO <= scale <= self.MAX_RATIO
         big_enough = abs(scale - 1) >= self.MIN_ASYMMETRY
         ok = f_pos > 0 and f_neg > 0 and abs(coef[0] - coef[1]) > 3 * diff_std and in_range and big_enough
         if ok:
             why = ""
         elif f_pos > 0 and f_neg > 0 and not in_range:
-            why = "more than 2:1 between the directions: not a friction asymmetry (an offset, a model error): unexplained"
+            why = (f"more than {self.MAX_RATIO:g}:1 between the directions: not a friction asymmetry (an offset, a model "
+                   "error): unexplained")
         elif f_pos > 0 and f_neg > 0 and not big_enough:
             why = (f"directions differ by {abs(scale - 1):.0%} < {self.MIN_ASYMMETRY:.0%}: within what a torque zero "
                    f"drift and a Coulomb change together give")

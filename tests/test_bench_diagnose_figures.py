@@ -1686,8 +1686,8 @@ def test_stop29_thermal_floor_changes_only_four_cases_and_the_readmes_rates():
     readme = " ".join(README.split())
     assert "**only 131, 132, 373 and 37 change**: in sample **151 of 186 (81 %), clean 21 of 21, 20 false names**; " \
            "360-389 clean **6 of 7**" in readme
-    assert "**With this release (stop 29; every case whose names its two changes can move diagnosed again, below): " \
-           "151 of 186 (81 %), clean 21 of 21 (100 %), 20 false names.**" in readme
+    assert "**With stop 29's changes (every case whose names they can move diagnosed again, below): 151 of 186 " \
+           "(81 %), clean 21 of 21 (100 %), 20 false names**, and the same with this release (stop 30" in readme
 
 
 def test_stop29_fresh_cases_390_419_are_the_readmes():
@@ -1703,3 +1703,29 @@ def test_stop29_fresh_cases_390_419_are_the_readmes():
     assert diff == [400]
     readme = " ".join(README.split())
     assert "**29 of 33 (88 %)**, clean **4 of 4**, 6 false names (4 torque offsets" in readme
+
+
+def test_stop30_every_simulator_case_names_what_its_committed_rows_name():
+    """Stop 30 (AsymmetricFriction.MAX_RATIO 2 -> 3): every simulator case with a kept recording, 0-159 and 320-419
+    (260), diagnosed again with this release: each names exactly what its last committed rows name (stop 27's
+    rows, with stop 28's and stop 29's re-diagnosed cases in their place), so the README's simulator figures hold
+    for this release as they stand; the README says so."""
+    rows, s = _scored("sim-2026-11-27-stop30")
+    assert [r["seed"] for r in rows] == list(range(0, 160)) + list(range(320, 420))
+    last = {}
+    for name in ("all", "fresh", "hard", "new", "fresh27", "fresh28"):
+        last.update({r["seed"]: r for r in _scored(f"{name}-2026-11-26-stop27")[0]})
+    for name in ("sub58-2026-11-26-stop28", "sub16-2026-11-27-stop29", "sub36-2026-11-27-stop29",
+                 "fresh29-2026-11-27-stop29"):
+        last.update({r["seed"]: r for r in _scored(name)[0]})
+    for r in rows:
+        assert r["effects"] == last[r["seed"]]["effects"], r["seed"]
+        assert [(f["kind"], f["joint"]) for f in r["named"]] == \
+            [(f["kind"], f["joint"]) for f in last[r["seed"]]["named"]], r["seed"]
+    readme = " ".join(README.split())
+    assert (f"all {len(rows)} simulator cases with a kept recording (0-159, 320-419) diagnosed again with this "
+            "release name exactly what their committed rows name**") in readme
+    assert (f"**{s['effects_found']} of {s['effects']} ({round(100 * s['effect_rate'])} %)**, clean **{s['clean_none']} "
+            f"of {s['clean']} ({round(100 * s['clean_none'] / s['clean'])} %)**, {sum(s['false_names'].values())} false "
+            f"names; {s['visible_found']} of {s['visible']} visible effects "
+            f"({round(100 * s['visible_found'] / s['visible'])} %)") in readme

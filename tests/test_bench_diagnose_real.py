@@ -1,6 +1,6 @@
 """The real-data benchmark (scripts/bench_diagnose_real.py): randomised effects added to the real KUKA LWR4+
 recordings along their recorded motion, diagnosed with the plain command. The README's figures are what the script
-computes from its committed rows (docs/bench/diagnose-bench-real-2026-11-27-stop29.json), and the rows are what the
+computes from its committed rows (docs/bench/diagnose-bench-real-2026-11-27-stop30.json), and the rows are what the
 script makes: a few cases are drawn, synthesised and diagnosed again here and must name the same effects."""
 import importlib.util
 import json
@@ -14,7 +14,7 @@ from fixtures_id_sim import REAL
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
-TAG = "2026-11-27-stop29"      # the committed rows of this release (stop 28's are kept beside them)
+TAG = "2026-11-27-stop30"      # the committed rows of this release (stop 28's and 29's are kept beside them)
 ROWS = ROOT / "docs" / "bench" / f"diagnose-bench-real-{TAG}.json"
 
 

@@ -46,6 +46,8 @@ CASES = [
      and 0.2 < e["friction_per_kelvin"] < 0.3),
     ("load_dependent_friction", 1, {"coefficient": 0.15}, lambda e: abs(e["coefficient"] - 0.15) < 0.03),
     ("asymmetric_friction", 0, {"negative_scale": 1.5}, lambda e: abs(e["negative_scale"] - 1.5) < 0.1),
+    # 2.5:1 between the directions: refused as 'more than 2:1' until stop 30 (AsymmetricFriction.MAX_RATIO)
+    ("asymmetric_friction", 0, {"negative_scale": 2.5}, lambda e: abs(e["negative_scale"] - 2.5) < 0.25),
     ("torque_offset", 2, {"offset": 0.03}, lambda e: abs(e["offset"] - 0.03) < 0.006),
     # a shoulder spring whose resonance (7.4 Hz) sits at the torque band's edge: the first-order lag fits it low
     # (1120 N*m/rad, 25 % low), the resonance then inside the band. Named since that is reported, not refused (it was

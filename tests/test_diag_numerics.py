@@ -977,6 +977,23 @@ def test_an_asymmetry_whose_refitted_coulomb_level_falls_below_zero_says_so():
     assert not ok and why == "directions do not differ significantly"
 
 
+def test_an_asymmetry_up_to_three_to_one_is_a_friction_asymmetry():
+    """AsymmetricFriction.MAX_RATIO: the directions' Coulomb levels may differ by up to 3:1 (2:1 until stop 30, which
+    refused an asymmetry of 2.5, or of 0.4 as the real-data bench draws: a friction halved backwards on a joint whose
+    recording's own friction is lower than the model's); beyond 3:1 it is refused as an offset or a model error."""
+    from diagnosis.library import AsymmetricFriction
+
+    rd = SimpleNamespace(extra={"model": SimpleNamespace(friction_coulomb=np.array([0.98]))}, joints=["j1"])
+    term = AsymmetricFriction()
+    std = np.array([0.01, 0.01, 0.01])
+    for scale in (2.5, 0.4, 1 / 2.9, 2.9):
+        eff, _, ok, why = term.effect(rd, 0, None, np.array([0.0, (scale - 1) * 0.98, 0.0]), std)
+        assert ok and why == "" and eff["negative_scale"] == pytest.approx(scale)
+    for scale in (3.5, 0.25):
+        _, _, ok, why = term.effect(rd, 0, None, np.array([0.0, (scale - 1) * 0.98, 0.0]), std)
+        assert not ok and "more than 3:1 between the directions" in why
+
+
 def test_a_simulated_play_beside_a_negative_spring_is_no_contact():
     """Backlash.effect: the simulated play's scale near 1 is not enough; the contact spring's compliance beside it
     must not be significantly negative (the real-data bench's false plays beside a payload: lwr_3_joint, -0.0043 +-
