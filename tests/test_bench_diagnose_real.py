@@ -210,3 +210,24 @@ def test_no_play_beside_kuka_3s_payload(kuka_diag, tmp_path):
         [(f["kind"], f["joint"]) for f in row["named"]]
     true = next(e["mass"] for e in case["effects"] if e["kind"] == "payload_change")
     assert again["named"][0]["effect"]["mass"] == pytest.approx(true, rel=0.05)
+
+
+def test_the_readme_asymmetry_figures_are_the_committed_rows(committed):
+    """Seeds 0-59's asymmetric frictions: named on their joint, under the 12 % visibility floor, on lwr_7 (whose
+    model has no Coulomb friction to scale, so the effect is nil), and the two true torque offsets named an
+    asymmetry since stop 30 (AsymmetricFriction.MAX_RATIO); the README's words."""
+    rows, s = committed
+    asym = [(r, e, v) for r in rows for e, v in zip(r["effects"], r["visibility"]) if e["kind"] == "asymmetric_friction"]
+    named = sum(any(f["kind"] == e["kind"] and f["joint"] == e["joints"][0] for f in r["named"]) for r, e, _ in asym)
+    faint = [(r, e) for r, e, v in asym if not bench_real.sim_bench.visible(v)]    # changes it by under 12 %
+    on_hand = [(r, e) for r, e in faint if e["joints"][0] == 6]
+    offsets_read_asym = sorted(r["seed"] for r in rows for e in r["effects"] if e["kind"] == "torque_offset"
+                               and any(f["kind"] == "asymmetric_friction" and f["joint"] == e["joints"][0]
+                                       for f in r["named"]))
+    assert (named, len(asym), len(faint), len(on_hand), offsets_read_asym) == (5, 17, 8, 2, [21, 38])
+    text = " ".join(_readme_real_section().split())
+    assert f"asymmetric friction {named} of {len(asym)}, Stribeck" in text
+    assert (f"barely shows ({len(faint)} of the {len(asym)} change their joint's residual by under 12 %; "
+            f"{len(on_hand)} of them are on lwr_7") in text
+    assert f"{len(faint)} small asymmetries and a thermal drift change their joint's residual by under 12 %" in text
+    assert "Two true torque offsets on kuka_3's lwr_4 (seeds 21, 38)" in text
