@@ -1601,16 +1601,22 @@ def test_stop27_changes_only_the_false_payloads_beside_a_rattle(stop27):
 
 
 
+def _by_seed(*names: str) -> dict:
+    """{seed: row} of the committed rows docs/bench/diagnose-bench-NAME.json, in order: a later set's row replaces an
+    earlier one's (a case diagnosed again)."""
+    out = {}
+    for name in names:
+        out.update({r["seed"]: r for r in _scored(name)[0]})
+    return out
+
+
 def test_stop28_subset_has_stop27s_names_and_the_readmes_masses():
     """Stop 28 re-estimates the findings' coefficients (feasible weighted least squares) and chooses nothing: the 58
     cases diagnosed again name exactly what stop 27's rows name; the README's payload-mass figures are their score."""
     import numpy as np
 
     rows, s = _scored("sub58-2026-11-26-stop28")
-    before = {}
-    for which in ("all", "fresh", "hard", "new"):
-        for r in _scored(f"{which}-2026-11-26-stop27")[0]:
-            before[r["seed"]] = r
+    before = _by_seed("all-2026-11-26-stop27", "fresh-2026-11-26-stop27", "hard-2026-11-26-stop27", "new-2026-11-26-stop27")
     assert len(rows) == 58
     for r in rows:
         assert [(f["kind"], f["joint"]) for f in r["named"]] == [(f["kind"], f["joint"])
@@ -1629,10 +1635,7 @@ def test_stop29_subset_changes_only_case_106():
     name a play of the simulated-play term, diagnosed again, name what stop 27 named, except case 106, which loses its
     two false plays on motors 4 and 5 (joints 3 and 4) and nothing else; the README says so."""
     rows, s = _scored("sub16-2026-11-27-stop29")
-    before = {}
-    for which in ("all", "fresh", "hard", "new", "fresh27"):
-        for r in _scored(f"{which}-2026-11-26-stop27")[0]:
-            before[r["seed"]] = r
+    before = _by_seed("all-2026-11-26-stop27", "fresh-2026-11-26-stop27", "hard-2026-11-26-stop27", "new-2026-11-26-stop27", "fresh27-2026-11-26-stop27")
     assert len(rows) == 16
     changed = {}
     for r in rows:
@@ -1664,10 +1667,7 @@ def test_stop29_thermal_floor_changes_only_four_cases_and_the_readmes_rates():
     exactly 131, 132, 373 (false drifts) and 37 (an invisible true one) change, each losing its drift and nothing
     else; the README's in-sample rates and the 360-389 clean rate follow from the rows."""
     rows, _ = _scored("sub36-2026-11-27-stop29")
-    before = {}
-    for which in ("all", "fresh", "hard", "new", "fresh27", "fresh28"):
-        for r in _scored(f"{which}-2026-11-26-stop27")[0]:
-            before[r["seed"]] = r
+    before = _by_seed("all-2026-11-26-stop27", "fresh-2026-11-26-stop27", "hard-2026-11-26-stop27", "new-2026-11-26-stop27", "fresh27-2026-11-26-stop27", "fresh28-2026-11-26-stop27")
     assert len(rows) == 36
     changed = {}
     for r in rows:
@@ -1712,12 +1712,9 @@ def test_stop30_every_simulator_case_names_what_its_committed_rows_name():
     for this release as they stand; the README says so."""
     rows, s = _scored("sim-2026-11-27-stop30")
     assert [r["seed"] for r in rows] == list(range(0, 160)) + list(range(320, 420))
-    last = {}
-    for name in ("all", "fresh", "hard", "new", "fresh27", "fresh28"):
-        last.update({r["seed"]: r for r in _scored(f"{name}-2026-11-26-stop27")[0]})
-    for name in ("sub58-2026-11-26-stop28", "sub16-2026-11-27-stop29", "sub36-2026-11-27-stop29",
-                 "fresh29-2026-11-27-stop29"):
-        last.update({r["seed"]: r for r in _scored(name)[0]})
+    last = _by_seed(*(f"{name}-2026-11-26-stop27" for name in ("all", "fresh", "hard", "new", "fresh27", "fresh28")),
+                    "sub58-2026-11-26-stop28", "sub16-2026-11-27-stop29", "sub36-2026-11-27-stop29",
+                    "fresh29-2026-11-27-stop29")
     for r in rows:
         assert r["effects"] == last[r["seed"]]["effects"], r["seed"]
         assert [(f["kind"], f["joint"]) for f in r["named"]] == \
