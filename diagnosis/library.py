@@ -1932,7 +1932,12 @@ class Coupling(Term):
     joints, a wrist's bevel gears its neighbours) and from every joint K already couples with j (a differential
     wrist: a shared motor). Motors fitted and scored (``motors``): those driving j or any of its candidates."""
     kind, hyper_name = "coupling", "from_joint"
-    MAX_COEFFICIENT = 0.5      # |c| above this is not a gear error but a wrong transmission model
+    MAX_COEFFICIENT = 0.25     # |c| at or above this is not a gear error but a wrong transmission model (or another
+                               # physics): a gear matrix a quarter off is not an error of the K the arm was built
+                               # with. The real KUKA recordings' lwr_5 from lwr_6 reads -0.36 to -0.49 (both
+                               # paths agreeing on some select blocks: the real bench named it on seeds 63 and 120
+                               # at -0.39 and -0.49, no coupling concealed there); the simulator's gear errors are
+                               # drawn within 0.04-0.12 and read within 0.12 (0.5 until stop 31)
     AGREE = 0.2                # the two paths' coefficients may differ by this share of their mean
 
     def grid(self, rd, j):
