@@ -1726,3 +1726,19 @@ def test_stop30_every_simulator_case_names_what_its_committed_rows_name():
             f"of {s['clean']} ({round(100 * s['clean_none'] / s['clean'])} %)**, {sum(s['false_names'].values())} false "
             f"names; {s['visible_found']} of {s['visible']} visible effects "
             f"({round(100 * s['visible_found'] / s['visible'])} %)") in readme
+
+
+def test_stop31_every_simulator_case_names_what_stop30_named_to_the_last_digit():
+    """Stop 31 (Coupling.MAX_COEFFICIENT 0.5 -> 0.25): the 260 simulator cases with a kept recording diagnosed again
+    name exactly what stop 30's rows name, every parameter and report gain equal; the README says so."""
+    rows, s = _scored("sim-2026-11-27-stop31")
+    old, s_old = _scored("sim-2026-11-27-stop30")
+    assert [r["seed"] for r in rows] == [r["seed"] for r in old] == list(range(0, 160)) + list(range(320, 420))
+    for r, q in zip(rows, old):
+        assert r["case"] == q["case"] and r["named"] == q["named"], r["seed"]
+    assert s["effects_found"] == s_old["effects_found"] and s["false_names"] == s_old["false_names"]
+    couplings = [abs(f["effect"]["coefficient"]) for r in rows for f in r["named"] if f["kind"] == "coupling"]
+    assert couplings and round(max(couplings), 2) <= 0.12      # "read within 0.12": far inside the 0.25 bound
+    readme = " ".join(README.split())
+    assert ("the 260 cases diagnosed again once more; every named row equals stop 30's, to the last digit**"
+            in readme)
