@@ -28,7 +28,7 @@ real noise and real unmodelled friction, which nobody on the team made:
    joint; a payload on the same link).
 
     .venv/bin/python scripts/bench_diagnose_real.py [--cases 40] [--first 0] [--out runs/bench_diagnose_real]
-        [--data ../shared/data/real] [--rediagnose]
+        [--data ../shared/data/real] [--rediagnose] [--model runs/bench_diagnose_real/model]
 """
 from __future__ import annotations
 
@@ -146,9 +146,11 @@ class Workspace:
         from js2spec.model import load_model
 
         self.data, self.out = data, out
-        if logs is None or model is None:
-            made = prove.import_logs(data, out)
-            logs, model = out, prove.identify(made[0], out / "model")
+        if logs is None:
+            prove.import_logs(data, out)
+            logs = out
+        if model is None:       # identified from kuka_1 (cached in OUT/model: the plain command takes minutes)
+            model = prove.identify(Path(logs) / "kuka_1.mcap", out / "model")
         self.logs, self.model = Path(logs), Path(model)
         mdl = load_model(self.model)
         self.fc, self.fv = np.asarray(mdl.friction_coulomb, float), np.asarray(mdl.friction_viscous, float)
@@ -246,12 +248,19 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=Path("runs/bench_diagnose_real"))
     ap.add_argument("--data", type=Path, default=prove.DEFAULT_DATA)
     ap.add_argument("--rediagnose", action="store_true", help="diagnose again (after a change to the diagnosis)")
+    ap.add_argument("--model", type=Path, default=None,
+                    help="the plain model of kuka_1 made by an earlier run (its OUT/model; read only): skips the "
+                         "identification, which takes minutes (default: OUT/model, made when missing)")
     a = ap.parse_args(argv)
     if not (a.data / "kuka_lwr4").is_dir():
         print(f"bench_diagnose_real: error: {a.data / 'kuka_lwr4'}: not found; pass --data", file=sys.stderr)
         return 2
+    if a.model is not None and not (a.model / "model.yaml").is_file():
+        print(f"bench_diagnose_real: error: {a.model / 'model.yaml'}: not found; pass the model folder of an earlier "
+              "run (OUT/model), or leave --model out to identify one", file=sys.stderr)
+        return 2
     a.out.mkdir(parents=True, exist_ok=True)
-    ws = Workspace(a.data, a.out)
+    ws = Workspace(a.data, a.out, model=a.model)
     rows = []
     for seed in range(a.first, a.first + a.cases):
         case = draw_case(seed, len(ws.joints))

@@ -253,3 +253,14 @@ def test_stop31_only_the_two_false_couplings_a_quarter_off_go():
         assert 0.25 <= abs(f["effect"]["coefficient"]) < 0.5
     text = " ".join(_readme_real_section().split())
     assert "All 180 cases diagnosed again: **only 63 and 120 change**, each losing that false coupling" in text
+
+
+@pytest.mark.skipif(not (REAL / "kuka_lwr4").is_dir(), reason=f"real-arm recordings not found at {REAL}")
+def test_a_model_folder_without_its_model_is_one_clear_error(tmp_path, capsys):
+    """--model (skip the identification with an earlier run's model): a folder without model.yaml is refused before
+    anything is imported or written."""
+    out = tmp_path / "out"
+    assert bench_real.main(["--model", str(tmp_path / "none"), "--out", str(out), "--data", str(REAL)]) == 2
+    err = capsys.readouterr().err
+    assert "model.yaml: not found" in err and "--model" in err and err.count("\n") == 1
+    assert not out.exists()
