@@ -9,6 +9,8 @@ is ``torque / torque_constant`` (and vice versa).
 """
 from __future__ import annotations
 
+import os
+
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -267,7 +269,24 @@ def write_log(rec: Recording, urdf_path: Path, drives_path: Path, out: Path, rob
         ev += [(t0, "trial_start", name), (t0, "segment_start", name), (t1, "segment_end", name),
                (t1, "trial_end", name)]
     ev.sort(key=lambda e: e[0])
-    with LogWriter(out, robot=robot, cycle_hz=rate, source=src, urdf_text=urdf_text,
+    # written beside OUT and renamed over it when complete: a reader never sees half a file (two processes importing
+    # the same recording, or an interrupted import, used to leave one; a symlink at OUT is replaced, not written
+    # through)
+    out = Path(out)
+    part = out.with_name(f".{out.name}.{os.getpid()}.part")
+    try:
+        _write_log_file(part, robot, rate, src, urdf_text, drives_path, ev, first, cycle, valid, qm, tq, cu, N,
+                        nan_rows, nan_policy, positions_side, time_unit, unit_check)
+        os.replace(part, out)
+    finally:
+        part.unlink(missing_ok=True)
+    return out
+
+
+def _write_log_file(path, robot, rate, src, urdf_text, drives_path, ev, first, cycle, valid, qm, tq, cu, N, nan_rows,
+                    nan_policy, positions_side, time_unit, unit_check) -> None:
+    """The samples and events of :func:`write_log` into the js2-log-v1 file ``path``."""
+    with LogWriter(path, robot=robot, cycle_hz=rate, source=src, urdf_text=urdf_text,
                    drives_yaml=drives_path.read_text()) as w:
         ei = 0
         for k in np.flatnonzero(first):
@@ -284,4 +303,3 @@ def write_log(rec: Recording, urdf_path: Path, drives_path: Path, out: Path, rob
         w.metadata("import", {"samples": N, "duplicates_dropped": int(N - first.sum()),
                               "rows_with_nan": nan_rows, "nan_policy": nan_policy, "positions_side": positions_side,
                               "time_unit": time_unit, "unit_check": "on" if unit_check else "off"})
-    return out

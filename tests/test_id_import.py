@@ -57,3 +57,42 @@ def test_import_errors_name_the_file(tmp_path, capsys):
                "--urdf", str(bad_urdf), "--drives", str(drives), "-o", str(tmp_path / "x.mcap")])
     err = capsys.readouterr().err
     assert rc == 2 and "bad.urdf" in err and "shoulder" in err
+
+
+def test_an_import_replaces_its_output_whole_and_never_writes_through_a_link(tmp_path, monkeypatch, capsys):
+    """The log is written beside -o and renamed over it when complete: -o as a symlink is replaced (its target,
+    another run's file, is untouched), and an import that fails while writing leaves the old file as it was and no
+    partial file behind (two bench runs sharing a recording once read one mid-write: docs/diagnosis.md, stop 31)."""
+    import identification.importer as im
+
+    robot = load_robot("js2")
+    n = robot.drives.n
+    t = np.arange(200) / 100.0
+    _write_csv(tmp_path / "pos.csv", robot.drives.joints, np.sin(np.outer(t, np.arange(1, n + 1))))
+    _write_csv(tmp_path / "tau.csv", robot.drives.joints, 0.01 * np.ones((len(t), n)))
+    drives = tmp_path / "drives.yaml"
+    drives.write_text(robot.drives_yaml)
+    args = ["--positions", str(tmp_path / "pos.csv"), "--torques", str(tmp_path / "tau.csv"), "--rate", "100",
+            "--urdf", str(robot.urdf_path), "--drives", str(drives), "-o"]
+    target = tmp_path / "other_run.mcap"
+    target.write_bytes(b"another run's recording")
+    link = tmp_path / "rec.mcap"
+    link.symlink_to(target)
+    assert main(args + [str(link)]) == 0, capsys.readouterr().err
+    assert not link.is_symlink() and len(read_log(link).feedback.motor_position) == len(t)
+    assert target.read_bytes() == b"another run's recording"
+    before = link.read_bytes()
+
+    def broken(path, *a, **k):
+        path.write_bytes(b"half a fi")
+        raise OSError("No space left on device")
+    monkeypatch.setattr(im, "_write_log_file", broken)
+    try:
+        im.write_log(im.Recording(t, np.zeros((len(t), n)), np.zeros((len(t), n)), None, "x"), robot.urdf_path,
+                     drives, link, rate=100.0)
+    except OSError:
+        pass
+    else:
+        raise AssertionError("the failing write should raise")
+    assert link.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
