@@ -10,7 +10,6 @@ is ``torque / torque_constant`` (and vice versa).
 from __future__ import annotations
 
 import os
-
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -275,31 +274,24 @@ def write_log(rec: Recording, urdf_path: Path, drives_path: Path, out: Path, rob
     out = Path(out)
     part = out.with_name(f".{out.name}.{os.getpid()}.part")
     try:
-        _write_log_file(part, robot, rate, src, urdf_text, drives_path, ev, first, cycle, valid, qm, tq, cu, N,
-                        nan_rows, nan_policy, positions_side, time_unit, unit_check)
+        with LogWriter(part, robot=robot, cycle_hz=rate, source=src, urdf_text=urdf_text,
+                       drives_yaml=drives_path.read_text()) as w:
+            ei = 0
+            for k in np.flatnonzero(first):
+                tk = cycle[k] / rate
+                while ei < len(ev) and ev[ei][0] <= tk:
+                    w.event(ev[ei][0], ev[ei][1], ev[ei][2])
+                    ei += 1
+                w.feedback(int(cycle[k]), tk, np.where(valid[k], qm[k], 0.0), np.where(valid[k], tq[k], 0.0),
+                           motor_current=None if cu is None else np.where(valid[k], cu[k], 0.0),
+                           valid=valid[k].tolist())
+            while ei < len(ev):
+                w.event(ev[ei][0], ev[ei][1], ev[ei][2])
+                ei += 1
+            w.metadata("import", {"samples": N, "duplicates_dropped": int(N - first.sum()),
+                                  "rows_with_nan": nan_rows, "nan_policy": nan_policy, "positions_side": positions_side,
+                                  "time_unit": time_unit, "unit_check": "on" if unit_check else "off"})
         os.replace(part, out)
     finally:
         part.unlink(missing_ok=True)
     return out
-
-
-def _write_log_file(path, robot, rate, src, urdf_text, drives_path, ev, first, cycle, valid, qm, tq, cu, N, nan_rows,
-                    nan_policy, positions_side, time_unit, unit_check) -> None:
-    """The samples and events of :func:`write_log` into the js2-log-v1 file ``path``."""
-    with LogWriter(path, robot=robot, cycle_hz=rate, source=src, urdf_text=urdf_text,
-                   drives_yaml=drives_path.read_text()) as w:
-        ei = 0
-        for k in np.flatnonzero(first):
-            tk = cycle[k] / rate
-            while ei < len(ev) and ev[ei][0] <= tk:
-                w.event(ev[ei][0], ev[ei][1], ev[ei][2])
-                ei += 1
-            w.feedback(int(cycle[k]), tk, np.where(valid[k], qm[k], 0.0), np.where(valid[k], tq[k], 0.0),
-                       motor_current=None if cu is None else np.where(valid[k], cu[k], 0.0),
-                       valid=valid[k].tolist())
-        while ei < len(ev):
-            w.event(ev[ei][0], ev[ei][1], ev[ei][2])
-            ei += 1
-        w.metadata("import", {"samples": N, "duplicates_dropped": int(N - first.sum()),
-                              "rows_with_nan": nan_rows, "nan_policy": nan_policy, "positions_side": positions_side,
-                              "time_unit": time_unit, "unit_check": "on" if unit_check else "off"})

@@ -1616,7 +1616,7 @@ def test_stop28_subset_has_stop27s_names_and_the_readmes_masses():
     import numpy as np
 
     rows, s = _scored("sub58-2026-11-26-stop28")
-    before = _by_seed("all-2026-11-26-stop27", "fresh-2026-11-26-stop27", "hard-2026-11-26-stop27", "new-2026-11-26-stop27")
+    before = _by_seed(*(f"{which}-2026-11-26-stop27" for which in ("all", "fresh", "hard", "new")))
     assert len(rows) == 58
     for r in rows:
         assert [(f["kind"], f["joint"]) for f in r["named"]] == [(f["kind"], f["joint"])
@@ -1635,7 +1635,7 @@ def test_stop29_subset_changes_only_case_106():
     name a play of the simulated-play term, diagnosed again, name what stop 27 named, except case 106, which loses its
     two false plays on motors 4 and 5 (joints 3 and 4) and nothing else; the README says so."""
     rows, s = _scored("sub16-2026-11-27-stop29")
-    before = _by_seed("all-2026-11-26-stop27", "fresh-2026-11-26-stop27", "hard-2026-11-26-stop27", "new-2026-11-26-stop27", "fresh27-2026-11-26-stop27")
+    before = _by_seed(*(f"{which}-2026-11-26-stop27" for which in ("all", "fresh", "hard", "new", "fresh27")))
     assert len(rows) == 16
     changed = {}
     for r in rows:
@@ -1667,7 +1667,7 @@ def test_stop29_thermal_floor_changes_only_four_cases_and_the_readmes_rates():
     exactly 131, 132, 373 (false drifts) and 37 (an invisible true one) change, each losing its drift and nothing
     else; the README's in-sample rates and the 360-389 clean rate follow from the rows."""
     rows, _ = _scored("sub36-2026-11-27-stop29")
-    before = _by_seed("all-2026-11-26-stop27", "fresh-2026-11-26-stop27", "hard-2026-11-26-stop27", "new-2026-11-26-stop27", "fresh27-2026-11-26-stop27", "fresh28-2026-11-26-stop27")
+    before = _by_seed(*(f"{which}-2026-11-26-stop27" for which in ("all", "fresh", "hard", "new", "fresh27", "fresh28")))
     assert len(rows) == 36
     changed = {}
     for r in rows:
