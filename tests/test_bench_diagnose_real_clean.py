@@ -1,0 +1,102 @@
+"""Clean real recordings under other conditions (scripts/bench_diagnose_real_clean.py): other models, 15 s windows,
+100 Hz. The README's counts and figures are what the script computes from its committed rows
+(docs/bench/diagnose-real-clean-2026-11-27-stop32.json), and the rows are what the script makes: two windows are
+cut and diagnosed again here and must name the same effects (one of them a false name: the rows record where js2 is
+not yet what the issue asks, and this test fails when that changes, so the README is updated with it)."""
+import importlib.util
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from fixtures_id_sim import REAL
+
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text()
+ROWS = ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-27-stop32.json"
+
+spec = importlib.util.spec_from_file_location("bench_real_clean_under_test",
+                                              ROOT / "scripts" / "bench_diagnose_real_clean.py")
+bench = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(bench)
+
+
+@pytest.fixture(scope="module")
+def rows():
+    return json.loads(ROWS.read_text())["rows"]
+
+
+def _section() -> str:
+    start = README.index("Clean real recordings under other conditions")
+    return README[start:README.index("Randomised effects on the real recordings", start)]
+
+
+def _named(rows, name):
+    row = next(r for r in rows if r["name"] == name)
+    return row["named"]
+
+
+def test_the_readme_counts_are_the_committed_rows(rows):
+    s = bench.summary(rows)
+    text = _section()
+    m = re.search(r"\*\*(\d+) of (\d+) pairs name an effect\*\*.*?\*\*(\d+) of (\d+) windows name an effect\*\*.*?"
+                  r"\*\*(\d+) of (\d+) clean conditions name an effect\.?\*\*", text, re.S)
+    assert m, text
+    pairs, n_pairs, windows, n_windows, total, n_total = map(int, m.groups())
+    assert (pairs, n_pairs) == (s["models"]["named"], s["models"]["conditions"])
+    assert (windows, n_windows) == (s["windows"]["named"], s["windows"]["conditions"])
+    assert (total, n_total) == (s["all"]["named"], s["all"]["conditions"])
+    assert s["second arm"]["named"] == 0
+    # every name is on a recording the model was not identified from
+    assert s["models"]["named_other_recording"] == s["models"]["named"]
+    assert s["windows"]["named_other_recording"] == s["windows"]["named"]
+
+
+def test_the_readme_figures_are_the_committed_rows(rows):
+    text = _section().replace("\n", " ")
+    offset = _named(rows, "kuka_1 with the kuka_2 model")
+    assert [f["kind"] for f in offset] == ["torque_offset"]
+    assert f"{offset[0]['effect']['offset']:+.3f} N*m torque offset on lwr_1, whose report gain is " \
+           f"{100 * offset[0]['report_gain']:.0f} %" in text
+    pair = _named(rows, "kuka_3 with the kuka_2 model")
+    assert [f["kind"] for f in pair] == ["load_dependent_friction", "payload_change"]
+    assert f"a load-dependent friction and a {pair[1]['effect']['mass']:.1f} kg payload" in text
+    drift = _named(rows, "kuka_2 with the kuka_3 model")
+    assert [f["kind"] for f in drift] == ["thermal_drift"] and drift[0]["effect"]["time_constant"] == 10.0
+    heavy = _named(rows, "kuka_1 with the kuka_3 model")
+    assert [f["kind"] for f in heavy] == ["payload_change"]
+    assert f"+{heavy[0]['effect']['mass']:.2f} kg" in text and f"{100 * heavy[0]['report_gain']:.1f} %" in text
+    light = _named(rows, "kuka_3 200 Hz 20-80 % with the kuka_1 model")
+    com_cm = 100 * sum(c * c for c in light[0]["effect"]["com"]) ** 0.5
+    assert f"{light[0]['effect']['mass']:.2f} kg payload {com_cm:.0f} cm out" in text
+    play = _named(rows, "kuka_3 200 Hz 40-100 % with the kuka_1 model")
+    assert f"{1000 * play[0]['effect']['width']:.1f} mrad" in text
+    scales = [f["effect"]["negative_scale"] for r in rows if r["group"] == "windows" for f in r["named"]
+              if f["kind"] == "asymmetric_friction" and f["joint"] == "lwr_1_joint"]
+    assert len(scales) == 4 and f"{min(scales):.2f}-{max(scales):.2f}x backwards" in text
+
+
+def test_the_bench_prints_its_rows_and_refuses_a_missing_file(tmp_path, capsys):
+    assert bench.main(["--from-json", str(ROWS)]) == 0
+    out = capsys.readouterr().out
+    assert "all: 12 of 28 clean conditions name an effect" in out
+    assert bench.main(["--from-json", str(tmp_path / "none.json")]) == 2
+    err = capsys.readouterr().err
+    assert "cannot read" in err and err.count("\n") == 1
+
+
+@pytest.mark.skipif(not (REAL / "kuka_lwr4").is_dir(), reason=f"real-arm recordings not found at {REAL}")
+@pytest.mark.parametrize("which, part", [(3, (0.2, 0.8)), (3, (0.0, 0.6))])
+def test_committed_windows_are_what_the_bench_makes(kuka_diag, rows, tmp_path, which, part):
+    """The window cut from the imported recording and diagnosed with the plain kuka_1 model names what its row says
+    (kuka_3 20-80 %: a 0.15 kg payload on lwr_5_link, a false name; 0-60 %: nothing)."""
+    from identification.examples.real_arms import load_kuka, write_kuka
+
+    prove = bench._script("prove_diagnosis_real")
+    log = write_kuka(load_kuka(REAL, which)[0], REAL, tmp_path / "window.mcap", part=part)
+    d = prove.diagnose_cli(kuka_diag["model"], log, tmp_path / "diag")
+    want = _named(rows, bench.window_name(which, 1, part) + " with the kuka_1 model")
+    assert [(f["kind"], f["joint"]) for f in d["findings"]] == [(f["kind"], f["joint"]) for f in want]
+    for got, row in zip(d["findings"], want):
+        assert got["effect"].get("mass", 0.0) == pytest.approx(row["effect"].get("mass", 0.0), rel=1e-6)
