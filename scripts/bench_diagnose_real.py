@@ -13,9 +13,12 @@ real noise and real unmodelled friction, which nobody on the team made:
    - ``stribeck``: a hump h sgn(v) exp(-(|v| / v_s)^delta), v_s 0.05-0.3 rad/s, delta 1 or 2;
    - ``cogging``: A sin(p q + phi), p 8-40 per revolution (K = I: motor = joint);
    - ``asymmetric_friction``: the model's Coulomb friction scaled by 1.3-2.0 (or 0.4-0.7) when moving backwards;
-   - ``load_dependent_friction``: mu |tau| sgn(v), mu 0.02-0.1 of the joint's recorded torque;
+   - ``load_dependent_friction``: mu |tau| sgn(v), tau the joint's recorded torque, mu set by the size below (not
+     drawn in a range: over seeds 0-179 0.011-3.29; 7 of 21 at 0.5 or more, on lwr_5 and lwr_7 whose recorded
+     torque is small, which js2-diagnose refuses as no gear's friction);
    - ``thermal_drift``: the model's friction (B v + f_c sgn v) scaled by alpha dT, dT first order (time constant
-     4-12 s) in the friction power |f v|: a 30-90 % change at steady state;
+     4-12 s, under the 10 s the diagnosis looks for first) in the friction power |f v|, its change set by the size
+     below (over seeds 0-179 the friction at the recording's end is changed by 28 % to 5.5x);
    - ``torque_offset``: a constant;
    - ``payload_change``: a point mass of 0.5-2.5 kg at a random centre (within 6 cm) on link 4-7, its torque by
      RNEA along the recorded motion.

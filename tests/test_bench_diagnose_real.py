@@ -264,3 +264,19 @@ def test_a_model_folder_without_its_model_is_one_clear_error(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "model.yaml: not found" in err and "--model" in err and err.count("\n") == 1
     assert not out.exists()
+
+
+def test_the_readme_load_dependent_draws_are_the_committed_rows():
+    """Stop 32: the sized load-dependent frictions of the three committed sets, against the diagnosis's mu < 0.5."""
+    rows = [r for tag in ("", "-fresh", "-new")
+            for r in json.loads((ROOT / "docs" / "bench" / f"diagnose-bench-real{tag}-{TAG}.json").read_text())["rows"]]
+    draws = [(e["coefficient"], any(n["kind"] == e["kind"] and n["joint"] == e["joints"][0] for n in r["named"]),
+              e["joints"][0]) for r in rows for e in r["effects"] if e["kind"] == "load_dependent_friction"]
+    big = [d for d in draws if d[0] >= 0.5]
+    small = [d for d in draws if d[0] < 0.5]
+    text = " ".join(_readme_real_section().split())
+    assert (f"{len(big)} of the {len(draws)} load-dependent frictions over the three sets get a coefficient of 0.5 "
+            f"or more (up to {max(d[0] for d in draws):.2f}, on lwr_5 and lwr_7,") in text
+    assert sorted({d[2] for d in big}) == [4, 6]
+    assert f"none of them is named, {sum(d[1] for d in small)} of the other {len(small)} are" in text
+    assert not any(d[1] for d in big)
