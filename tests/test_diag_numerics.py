@@ -1027,3 +1027,26 @@ def test_a_gear_matrix_a_quarter_off_is_not_a_coupling(c, named):
     eff, summary, ok, why = Coupling().effect(rd, 5, 6, np.array([c, c * 1.05]), np.array([0.005, 0.005]))
     assert ok is named and eff["from_joint"] == 6 and eff["coefficient"] == pytest.approx(c * 1.025, rel=0.03)
     assert named or "is not a gear error" in why
+
+
+def test_a_finding_the_report_rows_do_not_confirm_is_said_so():
+    """Stop 32: a named finding whose own report gain is negative is named (the search chose it on the select rows;
+    the report rows score, they do not choose), and the headline and the next step say the report rows do not
+    confirm it. The gain of the corrected model is said to include the refits reported unexplained when there are."""
+    from diagnosis.report import headline, next_step, unconfirmed
+
+    offset = {"kind": "torque_offset", "joint": "lwr_1_joint", "holdout_gain": -0.273}
+    payload = {"kind": "payload_change", "joint": "lwr_6_joint", "holdout_gain": 0.45}
+    refit = {"joint": "lwr_3_joint", "regime": "late third", "frequency_band": "below 0.5 Hz"}
+    d = {"findings": [offset], "unexplained": [refit], "holdout_gain": 0.11}
+    assert unconfirmed(d) == [offset]
+    text = headline(d)
+    assert "the found terms and the refits reported unexplained remove 11%" in text
+    assert "Not confirmed there: torque_offset on lwr_1_joint makes its motors' report residual 27% worse" in text
+    assert next_step(d).startswith("Record another session")
+    both = {"findings": [payload, offset], "unexplained": [], "holdout_gain": 0.3}
+    assert "Together the found terms remove 30%" in headline(both) and "Not confirmed there: torque_offset" in \
+        headline(both) and "payload_change on lwr_6_joint makes" not in headline(both)
+    assert next_step(both).startswith("model_diagnosed.yaml")          # one finding holds: the usual next step
+    clean = {"findings": [payload], "unexplained": [], "holdout_gain": 0.45}
+    assert unconfirmed(clean) == [] and "Not confirmed" not in headline(clean)
