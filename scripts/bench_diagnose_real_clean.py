@@ -18,7 +18,8 @@ row per condition (what was named, what was reported unexplained) and the count 
 OUT/bench.json.
 
     .venv/bin/python scripts/bench_diagnose_real_clean.py [--data ../shared/data/real] [--out runs/bench_real_clean]
-    .venv/bin/python scripts/bench_diagnose_real_clean.py --from-json docs/bench/diagnose-real-clean-2026-11-27-stop32.json
+    .venv/bin/python scripts/bench_diagnose_real_clean.py \
+        --from-json docs/bench/diagnose-real-clean-2026-11-27-stop32.json
 """
 from __future__ import annotations
 
@@ -77,8 +78,8 @@ def conditions(data: Path, out: Path, progress=print) -> list[dict]:
         import_tx40(data, tx)
     if not (out / "model_tx40" / "model.yaml").is_file():
         progress("identifying a model from the TX40 recording ...")
-    rows.append({"name": "tx40 with its own model", "group": "second arm", "model": prove.identify(tx, out / "model_tx40"),
-                 "log": tx, "own": True})
+    tx_model = prove.identify(tx, out / "model_tx40")
+    rows.append({"name": "tx40 with its own model", "group": "second arm", "model": tx_model, "log": tx, "own": True})
     return rows
 
 
