@@ -370,3 +370,17 @@ def test_readme_speed_figures_of_stop_26_are_its_committed_runs():
     doc = (Path(__file__).resolve().parent.parent / "docs" / "diagnosis.md").read_text()
     moved = " ".join(doc[doc.index("#### The README's summary at stop 26"):].split())     # moved there at stop 27
     assert f"Speed: {a_x}x the 30 s goal on this machine today (the stop-25 code {b_x}x in the same session" in moved
+
+
+def test_stop32_speed_figures_in_the_docs_are_the_committed_run():
+    """docs/diagnosis.md's stop-32 speed sentence: the total, per-4-minute figure and ratio that
+    scripts/bench_diagnose_speed.py printed in the committed run."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    run = (root / "docs/bench/diagnose-speed-2026-11-27-stop32.txt").read_text()
+    (total, per4, ratio), = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", run, flags=re.M)
+    doc = " ".join((root / "docs/diagnosis.md").read_text().split())
+    assert f"takes {total} CPU s, {per4} per 4 minutes, {ratio}x the 30 s goal: not met" in doc
+    assert float(ratio) > 1.0
