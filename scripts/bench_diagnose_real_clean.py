@@ -17,6 +17,10 @@ counts it, though a real arm between two sessions does change: a torque sensor's
 row per condition (what was named, what was reported unexplained) and the count of conditions with a name; writes
 OUT/bench.json.
 
+4. **the payload protocol across models** (not clean: prove_diagnosis_real.py's 2 kg on the hand added to each
+   recording along its motion), each diagnosed with each of the three models: is the payload found whatever the
+   model (``payload_rows`` in bench.json, apart from the clean rows).
+
     .venv/bin/python scripts/bench_diagnose_real_clean.py [--data ../shared/data/real] [--out runs/bench_real_clean]
     .venv/bin/python scripts/bench_diagnose_real_clean.py \
         --from-json docs/bench/diagnose-real-clean-2026-11-27-stop32.json
@@ -102,6 +106,36 @@ def run(data: Path, out: Path) -> list[dict]:
     return results
 
 
+def payload_across_models(data: Path, out: Path) -> list[dict]:
+    """Step 4: kuka_k + the protocol's 2 kg on the hand, diagnosed with the kuka_m model, every k and m."""
+    prove = _script("prove_diagnosis_real")
+    rows = []
+    for k in (1, 2, 3):
+        log = out / "payload" / f"kuka_{k}_2kg.mcap"
+        if not log.is_file():
+            log.parent.mkdir(parents=True, exist_ok=True)
+            prove.payload_log(data, log, which=k)
+        for m in (1, 2, 3):
+            with contextlib.redirect_stdout(io.StringIO()):
+                d = prove.diagnose_cli(out / f"model_kuka_{m}", log, out / "diag" / f"payload_{k}{m}")
+            named = [{"kind": f["kind"], "joint": f["joint"], "effect": f["effect"]} for f in d["findings"]]
+            rows.append({"name": f"kuka_{k} + {prove.PAYLOAD_MASS:g} kg with the kuka_{m} model",
+                         "own_recording": k == m, "named": named})
+            print(f"{rows[-1]['name']}: " + ", ".join(
+                f"{f['kind']} on {f['joint']}" + (f" {f['effect']['mass']:.3f} kg" if "mass" in f["effect"] else "")
+                for f in named), flush=True)
+    return rows
+
+
+def payload_summary(rows: list[dict]) -> str:
+    """The payload across models in one line: found on the hand or the link before it, mass range, other names."""
+    masses = [f["effect"]["mass"] for r in rows for f in r["named"] if f["kind"] == "payload_change"]
+    hand = sum(any(f["kind"] == "payload_change" and f["joint"] == "lwr_6_joint" for f in r["named"]) for r in rows)
+    others = sum(sum(f["kind"] != "payload_change" for f in r["named"]) for r in rows)
+    return (f"payload across models: found in {len(masses)} of {len(rows)} (on the hand in {hand}), "
+            f"{min(masses):.3f}-{max(masses):.3f} kg for 2 kg; {others} other names beside it")
+
+
 def line(row: dict) -> str:
     named = ", ".join(f"{f['kind']} on {f['joint']}" for f in row["named"]) or "nothing"
     return f"{row['name']}: named {named}; unexplained on {len(row['unexplained'])} joint(s)"
@@ -145,15 +179,21 @@ def main(argv=None) -> int:
             print(f"bench_diagnose_real_clean: cannot read {a.from_json}: {e}", file=sys.stderr)
             return 2
         print(report(rows))
+        pay = json.loads(a.from_json.read_text()).get("payload_rows")
+        if pay:
+            print(payload_summary(pay))
         return 0
     if not (a.data / "kuka_lwr4").is_dir() or not (a.data / "staubli_tx40").is_dir():
         print(f"bench_diagnose_real_clean: the real recordings are not at {a.data} (kuka_lwr4/, staubli_tx40/): "
               "give --data", file=sys.stderr)
         return 2
     rows = run(a.data, a.out)
-    (a.out / "bench.json").write_text(json.dumps({"rows": rows, "summary": summary(rows)}, indent=1))
+    pay = payload_across_models(a.data, a.out)
+    (a.out / "bench.json").write_text(json.dumps({"rows": rows, "summary": summary(rows), "payload_rows": pay},
+                                                 indent=1))
     print()
     print(report(rows))
+    print(payload_summary(pay))
     return 0
 
 

@@ -100,3 +100,14 @@ def test_committed_windows_are_what_the_bench_makes(kuka_diag, rows, tmp_path, w
     assert [(f["kind"], f["joint"]) for f in d["findings"]] == [(f["kind"], f["joint"]) for f in want]
     for got, row in zip(d["findings"], want):
         assert got["effect"].get("mass", 0.0) == pytest.approx(row["effect"].get("mass", 0.0), rel=1e-6)
+
+
+def test_the_readme_payload_across_models_is_the_committed_rows():
+    """Step 4: the protocol's 2 kg on the hand of each recording, diagnosed with each recording's model: the README's
+    line is what the script prints from the committed rows, and every reading is within 10 % of 2 kg."""
+    pay = json.loads(ROWS.read_text())["payload_rows"]
+    assert len(pay) == 9
+    line = bench.payload_summary(pay)
+    assert line.split(": ", 1)[1] in " ".join(_section().split())
+    masses = [f["effect"]["mass"] for r in pay for f in r["named"] if f["kind"] == "payload_change"]
+    assert len(masses) == 9 and all(abs(m - 2.0) <= 0.2 for m in masses)
