@@ -69,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    from .report import unconfirmed, write_outputs
+    from .report import gain_scope, unconfirmed, write_outputs
     from .run import DiagnoseOptions, diagnose
 
     if not 0 < args.min_gain < 1:
@@ -105,9 +105,7 @@ def main(argv=None) -> int:
     for u in d["unexplained"]:
         print(f"  unexplained              {u['joint']:<12} {u['fraction_of_residual']:.0%} of its select residual, "
               f"largest {u['regime']}, mostly {u['frequency_band']}")
-    together = "the found terms and the refits reported unexplained" if d["unexplained"] and d["findings"] else \
-        "the found terms"
-    print(f"report gain of {together} together (rows the search never saw): {d['holdout_gain']:.1%}")
+    print(f"report gain of {gain_scope(d)} together (rows the search never saw): {d['holdout_gain']:.1%}")
     for f in unconfirmed(d):
         print(f"not confirmed on the report rows: {f['kind']} on {f['joint']} (its report gain "
               f"{f['holdout_gain']:.1%}): a lead to check on another recording, not a finding to act on")

@@ -116,14 +116,20 @@ def unconfirmed(d: dict) -> list[dict]:
     return [f for f in d["findings"] if f.get("holdout_gain") is not None and f["holdout_gain"] < 0]
 
 
+def gain_scope(d: dict) -> str:
+    """What the headline gain scores: the found terms, and the refits reported unexplained when there are (they are
+    part of the corrected model it is computed on)."""
+    return "the found terms and the refits reported unexplained" if d["findings"] and d["unexplained"] else \
+        "the found terms"
+
+
 def headline(d: dict) -> str:
     """One sentence: is there a mismatch, what is it, and how much of the report-rows residual the findings remove
     (with the refits reported unexplained, when there are: they are part of the corrected model the gain scores);
     then the findings the report rows do not confirm, if any."""
     if d["findings"]:
         names = "; ".join(f"{f['kind']} on {f['joint']}" for f in d["findings"])
-        who = "the found terms and the refits reported unexplained" if d["unexplained"] else "the found terms"
-        text = (f"Mismatch found: the model leaves out {names}. Together {who} remove "
+        text = (f"Mismatch found: the model leaves out {names}. Together {gain_scope(d)} remove "
                 f"{d['holdout_gain']:.0%} of the residual on the report rows, which the search never saw.")
         weak = unconfirmed(d)
         if weak:

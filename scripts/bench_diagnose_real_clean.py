@@ -10,16 +10,15 @@ bench asks the same question, with the plain commands, on:
    (9 pairs; the diagonal is a model's own recording);
 2. **windows**: 60 % of each recording (0-60 %, 20-80 %, 40-100 %: 15 s of 25 s) at 200 Hz and decimated to 100 Hz,
    with the kuka_1 model (18 windows; kuka_1's are that model's own data);
-3. **a second arm**: the Staubli TX40 recording (5 kHz, motor currents, 9 s) with the model identified from it.
-
-Nothing is added to any recording: whatever is named is named on a clean recording (a false name, as the issue
-counts it, though a real arm between two sessions does change: a torque sensor's zero, its friction). Prints one
-row per condition (what was named, what was reported unexplained) and the count of conditions with a name; writes
-OUT/bench.json.
-
+3. **a second arm**: the Staubli TX40 recording (5 kHz, motor currents, 9 s) with the model identified from it;
 4. **the payload protocol across models** (not clean: prove_diagnosis_real.py's 2 kg on the hand added to each
    recording along its motion), each diagnosed with each of the three models: is the payload found whatever the
    model (``payload_rows`` in bench.json, apart from the clean rows).
+
+Nothing is added to the recordings of 1-3: whatever is named there is named on a clean recording (a false name, as
+the issue counts it, though a real arm between two sessions does change: a torque sensor's zero, its friction).
+Prints one row per condition (what was named, what was reported unexplained), the count of conditions with a name
+and the payload's line; writes OUT/bench.json.
 
     .venv/bin/python scripts/bench_diagnose_real_clean.py [--data ../shared/data/real] [--out runs/bench_real_clean]
     .venv/bin/python scripts/bench_diagnose_real_clean.py \
@@ -38,7 +37,6 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
-DEFAULT_DATA = HERE.parents[1] / "shared" / "data" / "real"
 
 WINDOWS = ((0.0, 0.6), (0.2, 0.8), (0.4, 1.0))     # shares of a KUKA recording's length
 RATES = (1, 2)                                      # decimation: 200 Hz, 100 Hz
@@ -51,6 +49,9 @@ def _script(name: str):
     return mod
 
 
+prove = _script("prove_diagnosis_real")      # import, identify, the payload's torque, the plain js2-diagnose
+
+
 def window_name(which: int, decimate: int, part) -> str:
     return f"kuka_{which} {200 // decimate} Hz {int(part[0] * 100)}-{int(part[1] * 100)} %"
 
@@ -59,7 +60,6 @@ def conditions(data: Path, out: Path, progress=print) -> list[dict]:
     """(name, group, model, log) of every condition, the recordings imported and the models identified as needed."""
     from identification.examples.real_arms import import_tx40, load_kuka, write_kuka
 
-    prove = _script("prove_diagnosis_real")
     logs = prove.import_logs(data, out)
     models = {}
     for i, log in enumerate(logs, start=1):
@@ -88,7 +88,6 @@ def conditions(data: Path, out: Path, progress=print) -> list[dict]:
 
 
 def run(data: Path, out: Path) -> list[dict]:
-    prove = _script("prove_diagnosis_real")
     out.mkdir(parents=True, exist_ok=True)
     results = []
     conds = conditions(data, out)
@@ -108,7 +107,6 @@ def run(data: Path, out: Path) -> list[dict]:
 
 def payload_across_models(data: Path, out: Path) -> list[dict]:
     """Step 4: kuka_k + the protocol's 2 kg on the hand, diagnosed with the kuka_m model, every k and m."""
-    prove = _script("prove_diagnosis_real")
     rows = []
     for k in (1, 2, 3):
         log = out / "payload" / f"kuka_{k}_2kg.mcap"
@@ -168,18 +166,19 @@ def report(rows: list[dict]) -> str:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    p.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the real recordings (default %(default)s)")
+    p.add_argument("--data", type=Path, default=prove.DEFAULT_DATA, help="the real recordings (default %(default)s)")
     p.add_argument("--out", type=Path, default=Path("runs/bench_real_clean"))
     p.add_argument("--from-json", type=Path, help="print the report of a saved bench.json")
     a = p.parse_args(argv)
     if a.from_json:
         try:
-            rows = json.loads(a.from_json.read_text())["rows"]
+            saved = json.loads(a.from_json.read_text())
+            rows = saved["rows"]
         except (OSError, ValueError, KeyError) as e:
             print(f"bench_diagnose_real_clean: cannot read {a.from_json}: {e}", file=sys.stderr)
             return 2
         print(report(rows))
-        pay = json.loads(a.from_json.read_text()).get("payload_rows")
+        pay = saved.get("payload_rows")
         if pay:
             print(payload_summary(pay))
         return 0

@@ -93,9 +93,8 @@ def test_committed_windows_are_what_the_bench_makes(kuka_diag, rows, tmp_path, w
     (kuka_3 20-80 %: a 0.15 kg payload on lwr_5_link, a false name; 0-60 %: nothing)."""
     from identification.examples.real_arms import load_kuka, write_kuka
 
-    prove = bench._script("prove_diagnosis_real")
     log = write_kuka(load_kuka(REAL, which)[0], REAL, tmp_path / "window.mcap", part=part)
-    d = prove.diagnose_cli(kuka_diag["model"], log, tmp_path / "diag")
+    d = bench.prove.diagnose_cli(kuka_diag["model"], log, tmp_path / "diag")
     want = _named(rows, bench.window_name(which, 1, part) + " with the kuka_1 model")
     assert [(f["kind"], f["joint"]) for f in d["findings"]] == [(f["kind"], f["joint"]) for f in want]
     for got, row in zip(d["findings"], want):
