@@ -236,29 +236,73 @@ def visible(v: float | None) -> bool:
     return v is None or abs(v) >= MIN_VISIBLE
 
 
-def _kept_visibility(case: dict, rec: Path, source: Path | None) -> list[float] | None:
-    """The visibility of ``case`` from an earlier run's row (``--visibility-from DIR``): it depends only on the
-    recording and the model, so it is taken when that row is of the same draw and was written after the recording
-    (made from this very file); otherwise None (it is computed again)."""
-    if source is None:
-        return None
-    old = source / f"case_{case['seed']:03d}.json"
-    if not (old.is_file() and rec.is_file()) or old.stat().st_mtime < rec.stat().st_mtime:
-        return None
-    row = json.loads(old.read_text())
-    if row.get("case") != json.loads(json.dumps(case)) or row.get("visibility") is None:
-        return None
-    return row["visibility"]
+def _kept_visibility(case: dict, rec: Path, sources: list[Path] | None) -> list[float] | None:
+    """The visibility of ``case`` from an earlier run's row (``--visibility-from DIR``, the first DIR that has it):
+    it depends only on the recording and the model, so it is taken when that row is of the same draw and was
+    written after the recording (made from this very file); otherwise None (it is computed again). A case read
+    every k-th cycle (``log_every``) takes the visibility of its recording at the drawn rate (``rec``): how much
+    of its motor's residual the effect makes on the arm, which the slower log samples."""
+    drawn = json.loads(json.dumps({k: v for k, v in case.items() if k != "log_every"}))
+    for source in [sources] if isinstance(sources, Path) else sources or []:
+        old = source / f"case_{case['seed']:03d}.json"
+        if not (old.is_file() and rec.is_file()) or old.stat().st_mtime < rec.stat().st_mtime:
+            continue
+        row = json.loads(old.read_text())
+        if row.get("case") != drawn or row.get("visibility") is None:
+            continue
+        return row["visibility"]
+    return None
+
+
+def at_log_rate(case: dict, log_hz: float | None) -> dict:
+    """``case`` diagnosed on its recording read every k-th SYNC cycle, k = round(drawn rate / log_hz)
+    (``log_every``; ``--log-hz``): the drives and the host's loop run at the drawn rate, the log is written slowly,
+    as real arms are logged (a KUKA's FRI at 100-200 Hz). The effects, trajectories and gains are as drawn.
+
+    (Running the loop itself at 100 Hz is not this: with the drawn gains, tuned for 250-1000 Hz, a clean arm
+    chatters there, 24-100 mrad at 9.5 Hz on every joint (case 104; 0.1-0.6 mrad at its drawn 500 Hz), so such a
+    recording tests a controller that no one would run.)"""
+    if log_hz is None:
+        return case
+    return dict(case, log_every=max(1, int(round(case["cycle_hz"] / float(log_hz)))))
+
+
+def _kept_recording(case: dict, sources: list[Path] | None, rec: Path) -> bool:
+    """Link the kept recording of ``case`` from the first of ``sources`` that has it (earlier runs with
+    --keep-recordings: ``--recordings-from``) to ``rec``, when that run's row is of the same draw."""
+    if rec.is_file():
+        return True
+    drawn = json.loads(json.dumps({k: v for k, v in case.items() if k != "log_every"}))
+    for source in sources or []:
+        old_rec = source / "runs" / rec.name
+        old_row = source / f"case_{case['seed']:03d}.json"
+        if not (old_rec.is_file() and old_row.is_file()):
+            continue
+        if json.loads(old_row.read_text()).get("case") != drawn:
+            continue
+        rec.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            rec.hardlink_to(old_rec)
+        except OSError:
+            import shutil
+            shutil.copyfile(old_rec, rec)
+        return True
+    return False
 
 
 def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bool = False,
-             rediagnose: bool = False, record_only: bool = False, visibility_from: Path | None = None) -> dict | None:
+             rediagnose: bool = False, record_only: bool = False, visibility_from: list[Path] | None = None,
+             recordings_from: list[Path] | None = None) -> dict | None:
     """Simulate (unless its recording is kept) and diagnose case ``case``; cached in OUT/case_NNN.json, valid while
-    the case's draw is unchanged."""
+    the case's draw is unchanged. A case with ``log_every`` (:func:`at_log_rate`) is diagnosed on its recording read
+    every k-th cycle (``js2spec.resample.decimate_log``, OUT/runs/case_NNN_everyK.mcap)."""
     from diagnosis.run import diagnose
+    from js2spec.resample import decimate_log
 
     res_path = out / f"case_{case['seed']:03d}.json"
     rec = out / "runs" / f"case_{case['seed']:03d}.mcap"
+    every = int(case.get("log_every", 1))
+    _kept_recording(case, recordings_from, rec)
     if res_path.is_file() and not rediagnose:
         row = json.loads(res_path.read_text())
         if row.get("case") == json.loads(json.dumps(case)):
@@ -277,6 +321,13 @@ def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bo
     if record_only:
         return None
     vis = _kept_visibility(case, rec, visibility_from)
+    if every > 1:
+        slow = rec.with_name(f"{rec.stem}_every{every}.mcap")
+        if not slow.is_file():
+            decimate_log(rec, slow, every)
+        if not keep:
+            rec.unlink(missing_ok=True)
+        rec = slow
     if vis is None:
         vis = visibility(rec, model, case["effects"], out)
     t1 = time.time()
@@ -284,7 +335,7 @@ def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bo
     t2 = time.time()
     named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
               "report_gain": f["holdout_gain"]} for f in res.findings()]
-    row = {"seed": case["seed"], "case": case, "effects": case["effects"], "cycle_hz": case.get("cycle_hz"),
+    row = {"seed": case["seed"], "case": case, "effects": case["effects"], "cycle_hz": case.get("cycle_hz") / every,
            "named": named, "unexplained": [u["joint_index"] for u in res.unexplained()], "visibility": vis,
            "sim_s": sim_s, "diagnose_s": round(t2 - t1, 1)}
     res_path.write_text(json.dumps(row, default=float))
@@ -448,14 +499,24 @@ def main(argv=None) -> int:
     ap.add_argument("--rediagnose", action="store_true",
                     help="diagnose the kept recordings again (ignore the cached results; implies --keep-recordings)")
     ap.add_argument("--record-only", action="store_true", help="simulate and keep the recordings, do not diagnose")
-    ap.add_argument("--visibility-from", type=Path, metavar="DIR",
-                    help="with --rediagnose: take each case's visibility from DIR/case_NNN.json (an earlier run on "
-                         "the same recordings: same draw, row written after the recording) instead of replaying "
-                         "every effect again (about half of a rerun's time)")
+    ap.add_argument("--visibility-from", type=Path, metavar="DIR", action="append",
+                    help="with --rediagnose or --recordings-from: take each case's visibility from DIR/case_NNN.json "
+                         "(an earlier run on the same recordings: same draw, row written after the recording) "
+                         "instead of replaying every effect again (about half of a rerun's time); may be given "
+                         "several times. With --log-hz, the visibility at the drawn rate")
     ap.add_argument("--from-json", type=Path, metavar="BENCH_JSON",
                     help="print the report of a saved bench.json (e.g. docs/bench/diagnose-bench-all-2026-11-24.json) "
                          "without simulating or diagnosing anything")
+    ap.add_argument("--log-hz", type=float, metavar="HZ",
+                    help="diagnose every case's recording read every k-th SYNC cycle, k = round(drawn rate / HZ): "
+                         "the drives' loop as drawn, logged slowly as real arms are (250 Hz cases: k = 2, 125 Hz)")
+    ap.add_argument("--recordings-from", type=Path, metavar="DIR", action="append",
+                    help="take each case's recording from DIR/runs/ (an earlier run with --keep-recordings, same "
+                         "draw) instead of simulating it again; may be given several times")
     a = ap.parse_args(argv)
+    if a.log_hz is not None and not 10.0 <= a.log_hz <= 10_000.0:
+        print(f"bench_diagnose: error: --log-hz {a.log_hz:g} is not a logging rate (10-10000 Hz)", file=sys.stderr)
+        return 2
     if a.from_json is not None:
         try:
             rows = json.loads(a.from_json.read_text())["rows"]
@@ -491,15 +552,16 @@ def main(argv=None) -> int:
     rows = []
     n = robot.drives.n
     for seed in range(a.first, a.first + a.cases):
-        case = draw_case(seed, n, base_cfg)
-        row = run_case(case, model, robot, base_cfg, a.out, keep, a.rediagnose, a.record_only, a.visibility_from)
+        case = at_log_rate(draw_case(seed, n, base_cfg), a.log_hz)
+        row = run_case(case, model, robot, base_cfg, a.out, keep, a.rediagnose, a.record_only, a.visibility_from,
+                       a.recordings_from)
         truth = ", ".join(f"{e['kind']}@{e['joints'][0]}" for e in case["effects"]) or "clean"
         if row is None:
             print(f"case {seed:3d}: recorded ({truth}, {case['cycle_hz']:g} Hz)", flush=True)
             continue
         rows.append(row)
         named = ", ".join(f"{f['kind']}@{f['joint']}" for f in row["named"]) or "nothing"
-        print(f"case {seed:3d}: {case['cycle_hz']:5g} Hz concealed {truth:<50} named {named}", flush=True)
+        print(f"case {seed:3d}: {row['cycle_hz']:5g} Hz concealed {truth:<50} named {named}", flush=True)
     if not rows:
         return 0
     s = score(rows)

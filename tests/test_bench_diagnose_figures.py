@@ -1742,3 +1742,30 @@ def test_stop31_every_simulator_case_names_what_stop30_named_to_the_last_digit()
     readme = " ".join(README.split())
     assert ("the 260 cases diagnosed again once more; every named row equals stop 30's, to the last digit**"
             in readme)
+
+
+def test_a_case_logged_slowly_is_the_same_draw_read_every_kth_cycle(tmp_path):
+    """--log-hz: the drawn case as it was (effects, trajectories, gains, drive rate), ``log_every`` cycles apart
+    (250 Hz -> every 2nd, 125 Hz; 500 -> 5th; 1000 -> 10th for 100 Hz), and the visibility of its recording at
+    the drawn rate, taken from any of several earlier runs (--visibility-from given twice)."""
+    import os
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_diagnose
+
+    for rate, every in ((250.0, 2), (500.0, 5), (1000.0, 10)):
+        case = {"seed": 3, "effects": [], "cycle_hz": rate}
+        slow = bench_diagnose.at_log_rate(case, 100.0)
+        assert slow == dict(case, log_every=every)
+        assert bench_diagnose.at_log_rate(case, None) is case
+    case = {"seed": 7, "effects": [{"kind": "stribeck", "joints": [1]}], "cycle_hz": 500.0}
+    rec = tmp_path / "case_007.mcap"
+    rec.write_bytes(b"recording")
+    os.utime(rec, (1_000, 1_000))
+    empty, old = tmp_path / "empty", tmp_path / "old"
+    empty.mkdir()
+    old.mkdir()
+    (old / "case_007.json").write_text(json.dumps({"case": case, "visibility": [0.4]}))
+    assert bench_diagnose._kept_visibility(bench_diagnose.at_log_rate(case, 100.0), rec, [empty, old]) == [0.4]
+    other = bench_diagnose.at_log_rate(dict(case, cycle_hz=1000.0), 100.0)             # another draw
+    assert bench_diagnose._kept_visibility(other, rec, [empty, old]) is None

@@ -252,3 +252,25 @@ def test_join_logs_refuses_recordings_of_another_arm_or_rate(tmp_path, robot):
             w.feedback(k, k / 250, np.zeros(6), torque=np.zeros(6), motor_current=np.zeros(6))
     with pytest.raises(LogError, match="cycle_hz differs"):
         join_logs([read_log(tmp_path / "a.mcap"), read_log(tmp_path / "c.mcap")])
+
+
+def test_a_log_read_every_kth_cycle_is_what_a_slower_logger_writes(tmp_path, robot):
+    """js2spec.resample.decimate_log: every 5th cycle of a 500 Hz log is a 100 Hz log of the same instants (the
+    samples as read, no filter), cycles consecutive again, every event kept, and the log says where it came from."""
+    from js2spec.resample import decimate_log
+
+    path = tmp_path / "a.mcap"
+    pos = _write(path, robot, n_cycles=2000)
+    slow = read_log(decimate_log(path, tmp_path / "slow.mcap", 5))
+    assert slow.cycle_hz == 100 and "every 5th cycle" in slow.meta["decimated_from"]
+    np.testing.assert_array_equal(slow.feedback.motor_position, pos[::5])
+    np.testing.assert_array_equal(slow.feedback.torque, pos[::5] * 0.1)
+    np.testing.assert_array_equal(slow.feedback.cycle, np.arange(400))
+    np.testing.assert_allclose(slow.feedback.t, np.arange(0, 2000, 5) / 500)
+    np.testing.assert_array_equal(slow.command.target_torque, pos[::5] * 0.01)
+    assert slow.command.target_velocity is None
+    assert [e["kind"] for e in slow.events] == [e["kind"] for e in read_log(path).events]
+    assert slow.segments("static")[0][0]["pose"] == [0.0] * 6
+    for bad in (0, 2.5):
+        with pytest.raises(ValueError, match="whole number"):
+            decimate_log(path, tmp_path / "bad.mcap", bad)
