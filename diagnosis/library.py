@@ -522,14 +522,30 @@ class Cogging(Term):
     def columns(self, rd, j, h):
         """sin, cos of p theta, once for the rows turning forward and once for those turning backward: a ripple
         is a function of the angle alone, so both directions must find the same one (checked in :meth:`effect`);
-        a residual locked to the trajectory's timing, not to the angle, does not."""
+        a residual locked to the trajectory's timing, not to the angle, does not. In the torque band, zero where
+        the ripple is faster than half the sample rate (:meth:`sampled`)."""
         th = np.nan_to_num(rd.q_motor[:, j])
         fwd = (_moving(rd, j) >= 0).astype(float)
         col = np.zeros((len(th), rd.n, 4))
         s, c = np.sin(h * th), np.cos(h * th)
         col[:, j, 0], col[:, j, 1] = s * fwd, c * fwd
         col[:, j, 2], col[:, j, 3] = s * (1 - fwd), c * (1 - fwd)
+        if self.band == "low":
+            col[:, j, :] *= self.sampled(rd, j, h)[:, None]
         return col
+
+    @staticmethod
+    def sampled(rd, j, p: int) -> np.ndarray:
+        """(N,) 1.0 where a ripple of p periods per revolution is slower than half the sample rate on motor j
+        (p |w| / 2 pi <= fs / 2), 0.0 where it is faster. There the recording's samples of sin p theta are an alias:
+        a slow wave that the torque filter passes, while the drive's current, whose loop cannot follow so fast a
+        ripple, carries none of it. Read every 5th or 10th cycle (100 Hz logs of 500-1000 Hz drives, the
+        benchmark's cases 134, 344, 350), the aliased rows swamped the slow ones where the ripple is in the current:
+        cogging named in none of them; zeroed, in each (the same ripple, 12 or 24 periods per revolution). The
+        benchmark's motors turn at up to 100-460 rad/s, so at its own 250-1000 Hz the rule zeroes rows too (p above
+        ~8 at 500 Hz on the fastest ones): on those 260 cases it changed 2 names (case 377's cogging at 250 Hz lost,
+        its two directions 0.4 rad apart; case 380's gained) and 7 cogging readings, the same 240 of 293 right."""
+        return (np.abs(_moving(rd, j)) * p <= np.pi * rd.fs).astype(float)
 
     RECUR = 8           # grid_columns: period counts in a row from one np.sin, np.cos
 
@@ -557,8 +573,14 @@ class Cogging(Term):
                 spans = list(zip(np.r_[0, ends[:-1]], ends))
         bwd = (1 - fwd) * sliding
         fwd = fwd * sliding
-        s1, c1 = np.sin(th), np.cos(th)
         grid = list(grid)
+        if self.band == "low" and grid:        # :meth:`sampled`, on the same rows
+            speed = np.abs(_moving(rd, j))
+            if spans is not None:
+                speed = speed[keep]
+            fast = speed * max(grid) > np.pi * rd.fs        # rows some period count of the grid does not sample
+            fwd_all, bwd_all = fwd, bwd
+        s1, c1 = np.sin(th), np.cos(th)
         per = max(1, self.GRID_BATCH // (4 * len(th)))
         for start in range(0, len(grid), per):
             chunk = grid[start:start + per]
@@ -573,6 +595,9 @@ class Cogging(Term):
                 else:
                     s, c = np.sin(h * th), np.cos(h * th)
                 prev = (h, s, c)
+                if self.band == "low" and fast.any():
+                    under = (speed * h <= np.pi * rd.fs).astype(float)
+                    fwd, bwd = fwd_all * under, bwd_all * under
                 np.multiply(s, fwd, out=XT[i, 0])
                 np.multiply(c, fwd, out=XT[i, 1])
                 np.multiply(s, bwd, out=XT[i, 2])

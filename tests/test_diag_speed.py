@@ -384,3 +384,34 @@ def test_stop32_speed_figures_in_the_docs_are_the_committed_run():
     doc = " ".join((root / "docs/diagnosis.md").read_text().split())
     assert f"takes {total} CPU s, {per4} per 4 minutes, {ratio}x the 30 s goal: not met" in doc
     assert float(ratio) > 1.0
+
+
+def test_cogging_in_the_torque_band_reads_no_ripple_faster_than_half_the_sample_rate(tmp_path):
+    """Read every 5th cycle (100 Hz), sin p theta where p |w| / 2 pi > 50 Hz is an alias: Cogging.sampled zeroes
+    those rows of the torque-band columns (not the unfiltered reading's), and the batched grid_columns gives the same
+    numbers as the columns one period count at a time, the mask biting."""
+    from diagnosis.library import Cogging, CoggingWide, _moving
+    from diagnosis.residual import residual_data
+    from js2spec.log import read_log
+    from js2spec.model import load_model
+    from js2spec.resample import decimate_log
+
+    slow = decimate_log(recording(json.dumps(EFFECTS)), tmp_path / "slow.mcap", 5)
+    rd = residual_data(load_model(clean_model()), read_log(slow))
+    assert rd.fs == 100
+    j, term = 0, Cogging()
+    speed = np.abs(_moving(rd, j))
+    grid = term.grid(rd, j)
+    p = max(grid)
+    fast = speed * p / (2 * np.pi) > 50.0
+    assert fast.any() and not fast.all()                           # the mask bites on some rows, not all
+    col = term.columns(rd, j, p)[:, j, :]
+    assert not np.any(col[fast]) and np.any(col[~fast])
+    assert np.array_equal(Cogging.sampled(rd, j, p), (~fast).astype(float))
+    wide = CoggingWide().columns(rd, j, p)[:, j, :]
+    assert np.any(wide[fast])                                      # unfiltered: every sample is the angle's own
+    rows = (rd.mask & rd.fit_rows[:, None])[:, [j]]
+    pick = list(grid[:3]) + [q for q in grid if q > 1.5 * np.pi * rd.fs / speed.max()][:3] + [p]
+    for h, X in term.grid_columns(rd, j, pick, rows):
+        want = term.band_columns(rd, j, h)[:, [j], :][rows]
+        np.testing.assert_allclose(X, want, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(want).max()), err_msg=str(h))
