@@ -1769,3 +1769,64 @@ def test_a_case_logged_slowly_is_the_same_draw_read_every_kth_cycle(tmp_path):
     assert bench_diagnose._kept_visibility(bench_diagnose.at_log_rate(case, 100.0), rec, [empty, old]) == [0.4]
     other = bench_diagnose.at_log_rate(dict(case, cycle_hz=1000.0), 100.0)             # another draw
     assert bench_diagnose._kept_visibility(other, rec, [empty, old]) is None
+
+
+def test_stop33_drawn_rate_cases_change_two_names_and_the_readme_says_so():
+    """Stop 33 (Cogging.sampled): the 260 simulator cases diagnosed again name what stop 31's rows name except
+    cases 377 (cogging lost) and 380 (cogging gained); the README's figures are these rows'."""
+    rows, s = _scored("sim-2026-11-27-stop33")
+    old, _ = _scored("sim-2026-11-27-stop31")
+    assert [r["seed"] for r in rows] == [r["seed"] for r in old]
+    changed = set()
+    for r, q in zip(rows, old):
+        assert r["case"] == q["case"], r["seed"]
+        if [(f["kind"], f["joint"]) for f in r["named"]] != [(f["kind"], f["joint"]) for f in q["named"]]:
+            changed.add(r["seed"])
+    assert changed == {377, 380}
+    by_seed = {r["seed"]: r for r in rows}
+    assert not by_seed[377]["named"] and ("cogging", 0) in [(f["kind"], f["joint"]) for f in by_seed[380]["named"]]
+    readme = " ".join(README.split())
+    assert (f"diagnosed again: {s['effects_found']} of {s['effects']} ({round(100 * s['effect_rate'])} %) as before, "
+            "two names change**") in readme
+    assert (f"{s['clean_none']} of {s['clean']} clean, {sum(s['false_names'].values())} false names, "
+            f"{s['visible_found']} of {s['visible']} visible effects") in readme
+
+
+def test_stop33_the_100hz_logs_are_the_drawn_cases_read_slower_and_the_readme_figures_are_theirs():
+    """--log-hz 100: every row is stop 33's drawn case with ``log_every`` k (its rate / k = 100 or 125 Hz); the
+    README's rates, per-kind counts against the drawn rates, payload figure and the before-change figures are what
+    bench_diagnose scores from the committed rows."""
+    rows, s = _scored("log100-2026-11-27-stop33")
+    before, s0 = _scored("log100-2026-11-27-stop33-before")
+    drawn, sd = _scored("sim-2026-11-27-stop33")
+    assert [r["seed"] for r in rows] == [r["seed"] for r in before] == [r["seed"] for r in drawn]
+    for r, q, d in zip(rows, before, drawn):
+        k = r["case"]["log_every"]
+        assert r["case"] == q["case"] == dict(d["case"], log_every=k), r["seed"]
+        assert r["cycle_hz"] == d["cycle_hz"] / k and r["cycle_hz"] in (100.0, 125.0)
+        assert r["visibility"] == d["visibility"]                       # the drawn-rate recording's
+    readme = " ".join(README.split())
+    assert (f"**{s['effects_found']} of {s['effects']} ({round(100 * s['effect_rate'])} %)**, clean "
+            f"**{s['clean_none']} of {s['clean']}**, {sum(s['false_names'].values())} false names; "
+            f"{s['visible_found']} of {s['visible']} visible effects "
+            f"({round(100 * s['visible_found'] / s['visible'])} %)") in readme
+
+    def hits(sc, kind):
+        row = sc["confusion"][kind]
+        return row[kind], sum(row.values())
+
+    for word, kind in (("cogging", "cogging"), ("elasticity", "joint_elasticity"), ("play", "backlash"),
+                       ("thermal drift", "thermal_drift"), ("coupling", "coupling"), ("Stribeck", "stribeck")):
+        (h, n), (hd, _) = hits(s, kind), hits(sd, kind)
+        assert f"{word} {h} of {n} ({hd})" in readme, kind
+    for kind in ("payload_change", "load_dependent_friction", "asymmetric_friction"):
+        assert hits(s, kind) == hits(sd, kind), kind                  # "as many"
+    masses = [(e["mass"], f["effect"]["mass"]) for r in rows for e in r["effects"] if e["kind"] == "payload_change"
+              for f in r["named"] if f["kind"] == "payload_change" and f["joint"] == e["joints"][0]]
+    within = sum(abs(m - t) <= 0.05 * t for t, m in masses)
+    assert f"masses within 5 % on {within} of {len(masses)} (case 29: 0.157 kg for 0.304)" in readme
+    case29 = next(r for r in rows if r["seed"] == 29)
+    assert round(next(f["effect"]["mass"] for f in case29["named"] if f["kind"] == "payload_change"), 3) == 0.157
+    assert (f"Before this stop's change: **{s0['effects_found']} of {s0['effects']} "
+            f"({round(100 * s0['effect_rate'])} %)**, {sum(s0['false_names'].values())} false names, cogging "
+            f"{hits(s0, 'cogging')[0]} of {hits(s0, 'cogging')[1]}") in readme
