@@ -5,6 +5,8 @@ import copy
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from js2spec.log import join_logs, read_log
 from js2spec.model import IdentifiedModel, load_model
 
@@ -166,6 +168,32 @@ class DiagnosisResult:
 MIN_NAMING_SPAN_S = 5.0     # s: a recording shorter than this names no effect (see diagnose)
 
 
+#: Hz: a recording sampled slower than this gets :func:`slow_log_note`. The benchmark's 260 cases read every 5th or
+#: 10th cycle (100 Hz; 250 Hz cases every 2nd, 125 Hz) named 31 of 61 elasticities and 41 of 57 plays against 40 and
+#: 49 at their drawn 250-1000 Hz (docs/diagnosis.md, stop 33)
+SLOW_LOG_HZ = 200.0
+
+
+def slow_log_note(fs: float) -> str:
+    """What a recording sampled at ``fs`` Hz (under ``SLOW_LOG_HZ``) cannot show well, in one sentence ('' above it):
+    a gear's oscillation above the torque band is read up to fs / 2 only, and two central differences keep
+    (sin wT / wT)^2 of its acceleration (the plays' and springs' readings above the band need it); a torque read
+    once per cycle carries its noise of the whole 0 to fs / 2 into the torque band."""
+    if fs >= SLOW_LOG_HZ:
+        return ""
+
+    def kept(f):
+        x = 2 * np.pi * f / fs
+        return (np.sin(x) / x) ** 2
+
+    return (f"sampled at {fs:g} Hz: a gear's oscillation above the torque band is read up to {fs / 2:g} Hz only, and "
+            f"the differentiated angle keeps {kept(fs / 4):.0%} of its acceleration at {fs / 4:g} Hz, "
+            f"{kept(0.37 * fs):.0%} at {0.37 * fs:.3g} Hz (the drives' limit cycles lie at 30-40 Hz); the torque "
+            f"(a current or a sensor), read once per cycle, brings its noise of 0-{fs / 2:g} Hz into the torque band. Plays, springs and fine "
+            "ripples show less than at 500 Hz or more: 'nothing' on them is weaker evidence here (docs/diagnosis.md, "
+            "stop 33)")
+
+
 def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
              options: DiagnoseOptions | None = None) -> DiagnosisResult:
     """Diagnose one recording, or one session recorded over several files (a list: joined in the order given,
@@ -222,6 +250,9 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
                      "friction that doubled the error on its report rows); what the search found is reported "
                      "unexplained")
     loc = locate(rd, search)
+    slow = slow_log_note(rd.fs)
+    if slow:
+        notes.append(slow)
     if (rd.signals.settings.fc_velocity_hz, rd.signals.settings.fc_acceleration_hz) != (
             (mdl.raw.get("filters") or {}).get("velocity_cutoff_hz", 50.0),
             (mdl.raw.get("filters") or {}).get("acceleration_cutoff_hz", 7.0)):

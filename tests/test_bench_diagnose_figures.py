@@ -1830,3 +1830,18 @@ def test_stop33_the_100hz_logs_are_the_drawn_cases_read_slower_and_the_readme_fi
     assert (f"Before this stop's change: **{s0['effects_found']} of {s0['effects']} "
             f"({round(100 * s0['effect_rate'])} %)**, {sum(s0['false_names'].values())} false names, cogging "
             f"{hits(s0, 'cogging')[0]} of {hits(s0, 'cogging')[1]}") in readme
+
+
+def test_stop33_the_slow_log_threshold_quotes_the_100hz_rows():
+    """diagnosis.run.SLOW_LOG_HZ's comment quotes the 100 Hz logs' elasticities and plays against the drawn rates."""
+    import inspect
+
+    import diagnosis.run as run
+
+    _, s = _scored("log100-2026-11-27-stop33")
+    _, sd = _scored("sim-2026-11-27-stop33")
+    src = " ".join(inspect.getsource(run).split())
+    e, p = s["confusion"]["joint_elasticity"], s["confusion"]["backlash"]
+    ed, pd = sd["confusion"]["joint_elasticity"], sd["confusion"]["backlash"]
+    assert (f"named {e['joint_elasticity']} of {sum(e.values())} elasticities and {p['backlash']} of "
+            f"{sum(p.values())} plays against {ed['joint_elasticity']} and {pd['backlash']}") in src.replace("#: ", "")

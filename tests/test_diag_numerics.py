@@ -1050,3 +1050,16 @@ def test_a_finding_the_report_rows_do_not_confirm_is_said_so():
     assert next_step(both).startswith("model_diagnosed.yaml")          # one finding holds: the usual next step
     clean = {"findings": [payload], "unexplained": [], "holdout_gain": 0.45}
     assert unconfirmed(clean) == [] and "Not confirmed" not in headline(clean)
+
+
+def test_a_slow_log_says_what_it_cannot_show():
+    """diagnosis.run.slow_log_note: under SLOW_LOG_HZ a note on the gear's oscillation up to fs / 2, the share of its
+    acceleration two central differences keep ((sin wT / wT)^2: 41 % at fs / 4, 10 % at 0.37 fs) and the noise a
+    once-per-cycle read brings into the torque band; nothing at 200 Hz and above."""
+    from diagnosis.run import SLOW_LOG_HZ, slow_log_note
+
+    note = slow_log_note(100.0)
+    assert "read up to 50 Hz only" in note and "keeps 41% of its acceleration at 25 Hz, 10% at 37 Hz" in note
+    assert "noise of 0-50 Hz" in note and "weaker evidence" in note
+    assert "up to 62.5 Hz only" in slow_log_note(125.0)
+    assert slow_log_note(SLOW_LOG_HZ) == "" and slow_log_note(500.0) == ""

@@ -255,6 +255,7 @@ def test_any_sample_rate_100hz_payload(kuka, tmp_path):
     assert main([str(kuka["model"]), str(log), "-o", str(tmp_path / "d"), "-q"]) == 0
     d = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
     assert d["sample_rate_hz"] == 100.0 and d["filters_hz"]["velocity"] == pytest.approx(40.0)
+    assert any(n.startswith("sampled at 100 Hz: a gear's oscillation") for n in d["notes"]), d["notes"]
     pay = [f for f in d["findings"] if f["kind"] == "payload_change"]
     assert pay and pay[0]["effect"]["mass"] == pytest.approx(prove.PAYLOAD_MASS, rel=0.10)
 
