@@ -1845,3 +1845,18 @@ def test_stop33_the_slow_log_threshold_quotes_the_100hz_rows():
     ed, pd = sd["confusion"]["joint_elasticity"], sd["confusion"]["backlash"]
     assert (f"named {e['joint_elasticity']} of {sum(e.values())} elasticities and {p['backlash']} of "
             f"{sum(p.values())} plays against {ed['joint_elasticity']} and {pd['backlash']}") in src.replace("#: ", "")
+
+
+def test_stop33_the_fir_derivative_tried_is_its_rows():
+    """docs/diagnosis.md's figures for the derivative tried and not kept are what its committed rows score."""
+    rows, s = _scored("log100-2026-11-27-stop33-fir")
+    _, s0 = _scored("log100-2026-11-27-stop33")
+    doc = " ".join(DOC.split())
+    c, c0 = s["confusion"], s0["confusion"]
+    assert (f"**{s['effects_found']} of {s['effects']}** against {s0['effects_found']}, but clean "
+            f"**{s['clean_none']} of {s['clean']}**") in doc
+    assert (f"plays {c['backlash']['backlash']} of {sum(c['backlash'].values())} ({c0['backlash']['backlash']}), "
+            f"elasticities {c['joint_elasticity']['joint_elasticity']} of {sum(c['joint_elasticity'].values())} "
+            f"({c0['joint_elasticity']['joint_elasticity']}), false plays {s['false_names']['backlash']} "
+            f"({s0['false_names']['backlash']}), {c['joint_elasticity']['backlash']} springs named plays") in doc
+    assert [f["kind"] for f in next(r for r in rows if r["seed"] == 27)["named"]] == ["backlash"]
