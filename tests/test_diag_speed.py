@@ -415,3 +415,16 @@ def test_cogging_in_the_torque_band_reads_no_ripple_faster_than_half_the_sample_
     for h, X in term.grid_columns(rd, j, pick, rows):
         want = term.band_columns(rd, j, h)[:, [j], :][rows]
         np.testing.assert_allclose(X, want, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(want).max()), err_msg=str(h))
+
+
+def test_stop33_speed_figures_in_the_docs_are_the_committed_run():
+    """docs/diagnosis.md's stop-33 speed sentence: what scripts/bench_diagnose_speed.py printed in the committed run."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    run = (root / "docs/bench/diagnose-speed-2026-11-27-stop33.txt").read_text()
+    (total, per4, ratio), = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", run, flags=re.M)
+    doc = " ".join((root / "docs/diagnosis.md").read_text().split())
+    assert f"takes {total} CPU s, {per4} per 4 minutes, {ratio}x the 30 s goal: not met" in doc
+    assert float(ratio) > 1.0
