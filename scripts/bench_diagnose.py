@@ -21,6 +21,14 @@ and the parameter errors; writes OUT/bench.json.
     .venv/bin/python scripts/bench_diagnose.py [--cases 48] [--first 0] [--out runs/bench_diagnose]
         [--keep-recordings] [--record-only] [--rediagnose]
     .venv/bin/python scripts/bench_diagnose.py --from-json docs/bench/diagnose-bench-all-2026-11-24.json
+    .venv/bin/python scripts/bench_diagnose.py --first 0 --cases 160 --log-hz 100 --out runs/log100 \
+        --recordings-from runs/bench_diagnose --visibility-from runs/bench_diagnose
+
+``--log-hz HZ`` diagnoses each case's recording read every k-th SYNC cycle (k = round(drawn rate / HZ); the drives'
+loop runs at the drawn rate, as a fast loop logged slowly: ``js2spec.resample.decimate_log``); with
+``--recordings-from`` the drawn-rate recordings of an earlier ``--keep-recordings`` run are used (linked, not
+simulated again), and ``--visibility-from`` takes their visibilities (stop 33's rows:
+docs/bench/diagnose-bench-log100-2026-11-27-stop33.json).
 
 Simulating a case takes about a minute on one free core; --cases sets how many are run (results are cached per
 case in OUT/case_NNN.json, so a longer run resumes). With --keep-recordings the recordings stay in OUT/runs/, and
