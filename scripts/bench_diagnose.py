@@ -21,7 +21,7 @@ and the parameter errors; writes OUT/bench.json.
     .venv/bin/python scripts/bench_diagnose.py [--cases 48] [--first 0] [--out runs/bench_diagnose]
         [--keep-recordings] [--record-only] [--rediagnose]
     .venv/bin/python scripts/bench_diagnose.py --from-json docs/bench/diagnose-bench-all-2026-11-24.json
-    .venv/bin/python scripts/bench_diagnose.py --first 0 --cases 160 --log-hz 100 --out runs/log100 \
+    .venv/bin/python scripts/bench_diagnose.py --first 0 --cases 160 --log-hz 100 --out runs/log100
         --recordings-from runs/bench_diagnose --visibility-from runs/bench_diagnose
 
 ``--log-hz HZ`` diagnoses each case's recording read every k-th SYNC cycle (k = round(drawn rate / HZ); the drives'
