@@ -545,7 +545,13 @@ class Cogging(Term):
         benchmark's motors turn at up to 100-460 rad/s, so at its own 250-1000 Hz the rule zeroes rows too (p above
         ~8 at 500 Hz on the fastest ones): on those 260 cases it changed 2 names (case 377's cogging at 250 Hz lost,
         its two directions 0.4 rad apart; case 380's gained) and 7 cogging readings, the same 240 of 293 right."""
-        return (np.abs(_moving(rd, j)) * p <= np.pi * rd.fs).astype(float)
+        return Cogging._under(np.abs(_moving(rd, j)), p, rd.fs).astype(float)
+
+    @staticmethod
+    def _under(speed: np.ndarray, p: int, fs: float) -> np.ndarray:
+        """(rows,) bool: a ripple of p periods per revolution at these motor speeds (rad/s) is at most fs / 2 (the
+        one comparison :meth:`sampled` and :meth:`grid_columns` make)."""
+        return speed * p <= np.pi * fs
 
     RECUR = 8           # grid_columns: period counts in a row from one np.sin, np.cos
 
@@ -578,7 +584,7 @@ class Cogging(Term):
             speed = np.abs(_moving(rd, j))
             if spans is not None:
                 speed = speed[keep]
-            fast = speed * max(grid) > np.pi * rd.fs        # rows some period count of the grid does not sample
+            masks = not self._under(speed, max(grid), rd.fs).all()   # some period count of the grid skips rows
             fwd_all, bwd_all = fwd, bwd
         s1, c1 = np.sin(th), np.cos(th)
         per = max(1, self.GRID_BATCH // (4 * len(th)))
@@ -595,8 +601,8 @@ class Cogging(Term):
                 else:
                     s, c = np.sin(h * th), np.cos(h * th)
                 prev = (h, s, c)
-                if self.band == "low" and fast.any():
-                    under = (speed * h <= np.pi * rd.fs).astype(float)
+                if self.band == "low" and masks:
+                    under = self._under(speed, h, rd.fs).astype(float)
                     fwd, bwd = fwd_all * under, bwd_all * under
                 np.multiply(s, fwd, out=XT[i, 0])
                 np.multiply(c, fwd, out=XT[i, 1])

@@ -189,9 +189,9 @@ def slow_log_note(fs: float) -> str:
     return (f"sampled at {fs:g} Hz: a gear's oscillation above the torque band is read up to {fs / 2:g} Hz only, and "
             f"the differentiated angle keeps {kept(fs / 4):.0%} of its acceleration at {fs / 4:g} Hz, "
             f"{kept(0.37 * fs):.0%} at {0.37 * fs:.3g} Hz (the drives' limit cycles lie at 30-40 Hz); the torque "
-            f"(a current or a sensor), read once per cycle, brings its noise of 0-{fs / 2:g} Hz into the torque band. Plays, springs and fine "
-            "ripples show less than at 500 Hz or more: 'nothing' on them is weaker evidence here (docs/diagnosis.md, "
-            "stop 33)")
+            f"(a current or a sensor), read once per cycle, brings its noise of 0-{fs / 2:g} Hz into the torque "
+            "band. Plays, springs and fine ripples show less than at 500 Hz or more: 'nothing' on them is weaker "
+            "evidence here (docs/diagnosis.md, stop 33)")
 
 
 def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,

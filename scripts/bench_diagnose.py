@@ -250,7 +250,7 @@ def _kept_visibility(case: dict, rec: Path, sources: list[Path] | None) -> list[
     written after the recording (made from this very file); otherwise None (it is computed again). A case read
     every k-th cycle (``log_every``) takes the visibility of its recording at the drawn rate (``rec``): how much
     of its motor's residual the effect makes on the arm, which the slower log samples."""
-    drawn = json.loads(json.dumps({k: v for k, v in case.items() if k != "log_every"}))
+    drawn = _drawn(case)
     for source in [sources] if isinstance(sources, Path) else sources or []:
         old = source / f"case_{case['seed']:03d}.json"
         if not (old.is_file() and rec.is_file()) or old.stat().st_mtime < rec.stat().st_mtime:
@@ -260,6 +260,11 @@ def _kept_visibility(case: dict, rec: Path, sources: list[Path] | None) -> list[
             continue
         return row["visibility"]
     return None
+
+
+def _drawn(case: dict) -> dict:
+    """``case`` as drawn (without ``log_every``), as an earlier run's row stores it (through JSON)."""
+    return json.loads(json.dumps({k: v for k, v in case.items() if k != "log_every"}))
 
 
 def at_log_rate(case: dict, log_hz: float | None) -> dict:
@@ -280,7 +285,7 @@ def _kept_recording(case: dict, sources: list[Path] | None, rec: Path) -> bool:
     --keep-recordings: ``--recordings-from``) to ``rec``, when that run's row is of the same draw."""
     if rec.is_file():
         return True
-    drawn = json.loads(json.dumps({k: v for k, v in case.items() if k != "log_every"}))
+    drawn = _drawn(case)
     for source in sources or []:
         old_rec = source / "runs" / rec.name
         old_row = source / f"case_{case['seed']:03d}.json"
@@ -310,7 +315,6 @@ def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bo
     res_path = out / f"case_{case['seed']:03d}.json"
     rec = out / "runs" / f"case_{case['seed']:03d}.mcap"
     every = int(case.get("log_every", 1))
-    _kept_recording(case, recordings_from, rec)
     if res_path.is_file() and not rediagnose:
         row = json.loads(res_path.read_text())
         if row.get("case") == json.loads(json.dumps(case)):
@@ -320,7 +324,7 @@ def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bo
             return row
     rec.parent.mkdir(parents=True, exist_ok=True)
     sim_s = None
-    if not rec.is_file():
+    if not _kept_recording(case, recordings_from, rec):
         cfg = copy.deepcopy(base_cfg)
         cfg.update(copy.deepcopy(case["trials"]))
         t0 = time.time()

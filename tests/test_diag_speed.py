@@ -372,14 +372,15 @@ def test_readme_speed_figures_of_stop_26_are_its_committed_runs():
     assert f"Speed: {a_x}x the 30 s goal on this machine today (the stop-25 code {b_x}x in the same session" in moved
 
 
-def test_stop32_speed_figures_in_the_docs_are_the_committed_run():
-    """docs/diagnosis.md's stop-32 speed sentence: the total, per-4-minute figure and ratio that
+@pytest.mark.parametrize("stop", ["stop32", "stop33"])
+def test_speed_figures_in_the_docs_are_the_committed_run(stop):
+    """docs/diagnosis.md's stop-32 and stop-33 speed sentences: the total, per-4-minute figure and ratio that
     scripts/bench_diagnose_speed.py printed in the committed run."""
     import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
-    run = (root / "docs/bench/diagnose-speed-2026-11-27-stop32.txt").read_text()
+    run = (root / f"docs/bench/diagnose-speed-2026-11-27-{stop}.txt").read_text()
     (total, per4, ratio), = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", run, flags=re.M)
     doc = " ".join((root / "docs/diagnosis.md").read_text().split())
     assert f"takes {total} CPU s, {per4} per 4 minutes, {ratio}x the 30 s goal: not met" in doc
@@ -415,16 +416,3 @@ def test_cogging_in_the_torque_band_reads_no_ripple_faster_than_half_the_sample_
     for h, X in term.grid_columns(rd, j, pick, rows):
         want = term.band_columns(rd, j, h)[:, [j], :][rows]
         np.testing.assert_allclose(X, want, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(want).max()), err_msg=str(h))
-
-
-def test_stop33_speed_figures_in_the_docs_are_the_committed_run():
-    """docs/diagnosis.md's stop-33 speed sentence: what scripts/bench_diagnose_speed.py printed in the committed run."""
-    import re
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parent.parent
-    run = (root / "docs/bench/diagnose-speed-2026-11-27-stop33.txt").read_text()
-    (total, per4, ratio), = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", run, flags=re.M)
-    doc = " ".join((root / "docs/diagnosis.md").read_text().split())
-    assert f"takes {total} CPU s, {per4} per 4 minutes, {ratio}x the 30 s goal: not met" in doc
-    assert float(ratio) > 1.0
