@@ -44,6 +44,7 @@ from scipy.stats import chi2
 
 from identification.base import base_parameters
 
+from .link_kernel import link_torques
 from .residual import ResidualData
 
 
@@ -1262,9 +1263,9 @@ def _link_responses(rd: ResidualData) -> dict:
     M_jj delta_dd = tau_s(delta, delta_d) - tau_r - G' delta, tau_s = -k (delta - clip(delta, -b/2, b/2)) - d delta_d
     [in contact]. The trapezoidal rule on the contact's linear pieces (no numerical damping), backward Euler where a
     step does not resolve a piece (stable at any inertia: a real wrist's M_jj can be 1000x below its median), fixed
-    sub-steps. Every (joint, grid point) is one lane of one vector, so the
-    Python loop runs once over the samples for the whole arm (not once per joint). The motor then carries
-    K^T e_j tau_s instead of K^T e_j tau_r.
+    sub-steps. Every (joint, grid point) is one lane; the lanes of the whole arm step together through one compiled
+    loop over the samples (:func:`diagnosis.link_kernel.link_torques`). The motor then carries K^T e_j tau_s
+    instead of K^T e_j tau_r.
     """
     n, N = rd.n, len(rd.t)
     tau_r = np.nan_to_num(rd.tau_rigid_joint)                                  # (N, n)
@@ -1289,91 +1290,12 @@ def _link_responses(rd: ResidualData) -> dict:
     h = dt / n_sub
     tr0 = tau_r[0, owner]
     delta = -tr0 / k - np.sign(tr0) * half              # at rest on the flank the load pushes
-    ddelta = np.zeros_like(k)
-    # theta-method: trapezoidal (theta 0.5) where the step resolves the piece's dynamics, backward Euler (1) where it
-    # does not (a tiny inertia): A-stable and L-stable respectively. Where every lane resolves both pieces (the gap
-    # and a flank) at a sample -- nearly always -- theta is the number 0.5 and the loop does not choose it lane by
-    # lane; what does not change within a sample (hm / 2, k b / 2) is made once, the outputs for a block of samples
-    # after its loop. Each product and sum is the same IEEE operation on the same numbers as with theta an array of
-    # 0.5 (outside the subnormal range): bit-identical to the lane-by-lane choice, 22 % fewer instructions
-    neg_half, k_half, h_half = -half, k * half, h * 0.5
-    L = len(lanes)
-    above, below = np.empty(L, dtype=bool), np.empty(L, dtype=bool)
-    side, touch, stiff, damp, force, f0, tmp, den, v1 = (np.empty(L) for _ in range(9))
-    mul, add, sub, div, gt, lt, absolute = (np.multiply, np.add, np.subtract, np.divide, np.greater, np.less,
-                                            np.absolute)    # ufuncs with a positional out: less call overhead
-    outs = {j: np.empty((N, int(np.sum(owner == j)))) for j in range(n)}
-    block = 2048          # samples whose per-sample terms and outputs are made together (cache-sized temporaries)
-    for t0 in range(0, N, block):
-        # (block, lanes): per block, not (N, lanes) for the whole recording (1.2 GB at 5 minutes, 500 Hz)
-        hm_b = (h / M[t0:t0 + block])[:, owner]
-        tr_b, gp_b = tau_r[t0:t0 + block][:, owner], Gp[t0:t0 + block][:, owner]
-        hm_half = hm_b * 0.5
-        resolved = np.all((hm_b * (d + h * np.abs(k + gp_b)) < 1.0) & (hm_b * (h * np.abs(gp_b)) < 1.0), axis=1)
-        states = np.empty((len(hm_b), 2, len(lanes)))
-        for i in range(len(hm_b)):
-            hm, tr, gp = hm_b[i], tr_b[i], gp_b[i]
-            if resolved[i]:
-                hm2 = hm_half[i]
-                for _ in range(n_sub):
-                    # the same IEEE operations on the same numbers as the formulas in the comments, written into
-                    # buffers made once (a + b as b + a and a * b as b * a where that saves a temporary:
-                    # commutative to the bit): no array is allocated per sub-step
-                    # side = (delta > half) - (delta < -half): +1, -1 in contact; 0 in the gap
-                    gt(delta, half, above)
-                    lt(delta, neg_half, below)
-                    np.subtract(above, below, out=side, dtype=float)
-                    absolute(side, touch)
-                    mul(k, touch, stiff)
-                    add(stiff, gp, stiff)                    # stiff = k touch + gp: d force / d delta on this piece
-                    mul(d, touch, damp)                      # damp = d touch
-                    mul(k_half, side, force)
-                    sub(force, tr, force)                    # force = k b/2 side - tau_r: the piece's constant part
-                    mul(stiff, delta, f0)
-                    sub(force, f0, f0)
-                    mul(damp, ddelta, tmp)
-                    sub(f0, tmp, f0)                         # f0 = force - stiff delta - damp ddelta
-                    # halving is exact in binary floating point, so hm (f0 / 2 + x / 2) = (hm / 2) (f0 + x) and
-                    # h (v / 2 + v1 / 2) = (h / 2) (v + v1) to the bit; the denominator is above 3/4 where
-                    # theta = 0.5 resolves (hm h |stiff| < 1), so its floor of 0.25 never acts here
-                    # v1 = (ddelta + hm2 (f0 + (force - stiff (delta + h/2 ddelta)))) / (1 + hm2 (damp + h/2 stiff))
-                    mul(h_half, ddelta, tmp)
-                    add(tmp, delta, tmp)
-                    mul(tmp, stiff, tmp)
-                    sub(force, tmp, tmp)
-                    add(tmp, f0, tmp)
-                    mul(tmp, hm2, tmp)
-                    add(tmp, ddelta, tmp)
-                    mul(h_half, stiff, den)
-                    add(den, damp, den)
-                    mul(den, hm2, den)
-                    add(den, 1.0, den)
-                    div(tmp, den, v1)
-                    # delta = delta + h/2 (ddelta + v1); ddelta = v1
-                    add(ddelta, v1, tmp)
-                    mul(tmp, h_half, tmp)
-                    add(delta, tmp, delta)
-                    ddelta, v1 = v1, ddelta
-            else:
-                for _ in range(n_sub):
-                    side = np.subtract(delta > half, delta < neg_half, dtype=float)
-                    touch = np.abs(side)
-                    stiff = k * touch + gp
-                    damp = d * touch
-                    force = k_half * side - tr
-                    f0 = force - stiff * delta - damp * ddelta
-                    th = np.where(hm * (damp + h * np.abs(stiff)) < 1.0, 0.5, 1.0)
-                    one_minus_th = 1 - th
-                    v_new = (ddelta + hm * (one_minus_th * f0 + th * (force - stiff * (delta + h * one_minus_th * ddelta)))) \
-                        / np.maximum(1.0 + hm * th * (damp + h * th * stiff), 0.25)
-                    delta = delta + h * (one_minus_th * ddelta + th * v_new)
-                    ddelta = v_new       # a new array: not the buffer v1 the other branch writes into
-            states[i, 0], states[i, 1] = delta, ddelta
-        dl, dd = states[:, 0], states[:, 1]
-        excess = dl - np.clip(dl, -half, half)
-        out_b = -k * excess - d * dd * (excess != 0) - tr_b
-        for j in range(n):
-            outs[j][t0:t0 + block] = out_b[:, owner == j]
+    # the theta-method per lane, sample by sample (diagnosis.link_kernel, compiled): trapezoidal where the sub-step
+    # resolves the piece's dynamics, backward Euler where it does not (a tiny inertia)
+    every = link_torques(np.ascontiguousarray(h / M), np.ascontiguousarray(tau_r), np.ascontiguousarray(Gp),
+                         owner.astype(np.int64), half, k, d, h, n_sub, delta)
+    first = np.searchsorted(owner, np.arange(n + 1))      # the lanes are in joint order: joint j's are a slice
+    outs = {j: every[:, first[j]:first[j + 1]] for j in range(n)}
     for j in range(n):
         # a lane that left the finite numbers (a chaotic lane's rounding can differ from run to run: one diverged
         # on CI and made the search's least squares fail) is no simulated link: its column is zero, which the

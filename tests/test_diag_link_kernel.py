@@ -1,0 +1,124 @@
+"""The compiled link simulation (``diagnosis.link_kernel.link_torques``) gives the numbers of the vectorised numpy
+loop it replaced, to the bit: on random inputs where every lane resolves its pieces (the trapezoidal branch), where
+tiny inertias do not (the per-lane theta branch), on a lane that diverges, and through ``_link_responses`` on a
+simulated recording."""
+import json
+
+import numpy as np
+import pytest
+
+from fixtures_diag import clean_model, recording
+
+
+def reference_link_torques(hm_joint, tau_r, gp_joint, owner, half, k, d, h, n_sub, delta0):
+    """The numpy loop of stop 33 (``_link_responses`` before the kernel): lanes as vectors, samples in Python."""
+    N, L = hm_joint.shape[0], len(owner)
+    neg_half, k_half, h_half = -half, k * half, h * 0.5
+    delta, ddelta = delta0.copy(), np.zeros(L)
+    out = np.empty((N, L))
+    hm_b, tr_b, gp_b = hm_joint[:, owner], tau_r[:, owner], gp_joint[:, owner]
+    resolved = np.all((hm_b * (d + h * np.abs(k + gp_b)) < 1.0) & (hm_b * (h * np.abs(gp_b)) < 1.0), axis=1)
+    states = np.empty((N, 2, L))
+    for i in range(N):
+        hm, tr, gp = hm_b[i], tr_b[i], gp_b[i]
+        if resolved[i]:
+            hm2 = hm * 0.5
+            for _ in range(n_sub):
+                side = np.subtract(delta > half, delta < neg_half, dtype=float)
+                touch = np.abs(side)
+                stiff = k * touch + gp
+                damp = d * touch
+                force = k_half * side - tr
+                f0 = force - stiff * delta - damp * ddelta
+                tmp = (force - (h_half * ddelta + delta) * stiff + f0) * hm2 + ddelta
+                den = (h_half * stiff + damp) * hm2 + 1.0
+                v1 = tmp / den
+                delta = delta + (ddelta + v1) * h_half
+                ddelta = v1
+        else:
+            for _ in range(n_sub):
+                side = np.subtract(delta > half, delta < neg_half, dtype=float)
+                touch = np.abs(side)
+                stiff = k * touch + gp
+                damp = d * touch
+                force = k_half * side - tr
+                f0 = force - stiff * delta - damp * ddelta
+                th = np.where(hm * (damp + h * np.abs(stiff)) < 1.0, 0.5, 1.0)
+                one_minus_th = 1 - th
+                v_new = (ddelta + hm * (one_minus_th * f0 + th * (force - stiff * (delta + h * one_minus_th * ddelta)))) \
+                    / np.maximum(1.0 + hm * th * (damp + h * th * stiff), 0.25)
+                delta = delta + h * (one_minus_th * ddelta + th * v_new)
+                ddelta = v_new
+        states[i, 0], states[i, 1] = delta, ddelta
+    dl, dd = states[:, 0], states[:, 1]
+    excess = dl - np.clip(dl, -half, half)
+    out[:] = -k * excess - d * dd * (excess != 0) - tr_b
+    return out
+
+
+def _inputs(seed, N=400, n=3, tiny=False):
+    rng = np.random.default_rng(seed)
+    M = rng.uniform(0.02, 2.0, (N, n))
+    if tiny:
+        M[rng.random((N, n)) < 0.2] = 1e-7           # inertias the sub-step does not resolve
+    t = np.arange(N) / 500.0
+    tau_r = np.sin(2 * np.pi * 1.3 * t)[:, None] * rng.uniform(0.5, 20, n) + rng.normal(0, 0.3, (N, n))
+    gp = rng.normal(0, 5.0, (N, n))
+    owner = np.repeat(np.arange(n), 8)
+    half = rng.uniform(0.0025, 0.04, len(owner))
+    m_typ = np.median(M, axis=0)[owner]
+    f = rng.choice([3.0, 6.0, 12.0, 24.0], len(owner))
+    k = m_typ * (2 * np.pi * f) ** 2
+    d = 2 * rng.choice([0.05, 0.3], len(owner)) * m_typ * 2 * np.pi * f
+    h = 1 / 500 / 2
+    delta0 = -tau_r[0, owner] / k - np.sign(tau_r[0, owner]) * half
+    return h / M, tau_r, gp, owner, half, k, d, h, 2, delta0
+
+
+@pytest.mark.parametrize("tiny", [False, True])
+def test_kernel_is_the_numpy_loop_to_the_bit(tiny):
+    from diagnosis.link_kernel import link_torques
+
+    args = _inputs(7, tiny=tiny)
+    got = link_torques(*args)
+    want = reference_link_torques(*args)
+    assert got.shape == want.shape
+    fin = np.isfinite(want)
+    assert fin.mean() > 0.9                          # the comparison is on numbers, not on NaNs
+    assert np.array_equal(np.isfinite(got), fin)
+    assert np.array_equal(got[fin], want[fin])       # bit for bit, not close
+    if tiny:                                         # the per-lane theta branch really ran
+        hm, _, gp, owner, _, k, d, h, _, _ = args
+        resolved = np.all((hm[:, owner] * (d + h * np.abs(k + gp[:, owner])) < 1.0), axis=1)
+        assert not resolved.all()
+
+
+def test_responses_of_a_recording_are_the_numpy_loops():
+    """Through ``_link_responses`` on a simulated recording (the search's real inputs)."""
+    from diagnosis import library
+    from diagnosis.residual import residual_data
+    from js2spec.log import read_log
+    from js2spec.model import load_model
+
+    rd = residual_data(load_model(clean_model()), read_log(recording(json.dumps(
+        [{"kind": "payload_change", "joints": [5], "mass": 0.3, "com": [0.05, 0.0, 0.0]},
+         {"kind": "stribeck", "joints": [1], "velocity": 4.0}]))))
+    got = library._link_responses(rd)
+    n = rd.n
+    M = np.stack([np.clip(np.nan_to_num(library._mass_column(rd, j)[:, j]), 1e-9, None) for j in range(n)], axis=1)
+    Gp = np.stack([np.nan_to_num(library._rnea_dq(rd, j)[:, j]) for j in range(n)], axis=1)
+    tau_r = np.nan_to_num(rd.tau_rigid_joint)
+    owner = np.repeat(np.arange(n), [len(got[j][1]) for j in range(n)])
+    grid = [g for j in range(n) for g in got[j][1]]
+    half = np.array([g[0] / 2 for g in grid])
+    k = np.array([g[1] for g in grid])
+    d = np.array([g[2] for g in grid])
+    dt = 1.0 / rd.fs
+    n_sub = int(np.clip(np.ceil(2 * np.pi * max(library.NATURAL_HZ) * dt / 0.25), 1, 16))
+    h = dt / n_sub
+    delta0 = -tau_r[0, owner] / k - np.sign(tau_r[0, owner]) * half
+    want = reference_link_torques(h / M, tau_r, Gp, owner, half, k, d, h, n_sub, delta0)
+    for j in range(n):
+        w = want[:, owner == j]
+        w[:, ~np.all(np.isfinite(w), axis=0)] = 0.0
+        assert np.array_equal(got[j][0], w), j
