@@ -5,7 +5,7 @@ sample loop around a lane loop around a sub-step loop. In numpy the sample loop 
 sub-step on 240 lanes: 7 CPU s of a 5-minute, 500 Hz session). Compiled by numba (``njit``, cached on disk beside
 this file after the first run) the same loop is one pass over the arrays. Each lane does the same IEEE operations,
 in the same order, as the vectorised form did (numba's default: no fast-math, no fused multiply-add), so the numbers
-are the same to the bit; ``tests/test_diag_link_kernel.py`` holds a numpy reference of the loop and checks it.
+are the same to the bit; ``tests/test_diag_exact_speedups.py`` holds a numpy reference of the loop and checks it.
 
 Array in, array out, no I/O; SI units, joint side.
 """

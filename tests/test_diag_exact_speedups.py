@@ -122,3 +122,16 @@ def test_responses_of_a_recording_are_the_numpy_loops():
         w = want[:, owner == j]
         w[:, ~np.all(np.isfinite(w), axis=0)] = 0.0
         assert np.array_equal(got[j][0], w), j
+
+
+@pytest.mark.parametrize("length,padlen", [(5000, 60), (61, 60), (40, 39), (2, 1), (1, 0)])
+def test_filtfilt_rows_is_scipys_sosfiltfilt_to_the_bit(length, padlen):
+    """``diagnosis.residual.filtfilt_rows`` (the filter's initial state made once) against scipy's own."""
+    from scipy.signal import butter, sosfilt_zi, sosfiltfilt
+
+    from diagnosis.residual import filtfilt_rows
+
+    sos = butter(4, 7.0, fs=500.0, output="sos")
+    x = np.random.default_rng(length).normal(size=(5, length)).cumsum(axis=1)
+    zi = sosfilt_zi(sos).reshape(len(sos), 1, 2)
+    assert np.array_equal(filtfilt_rows(sos, zi, x, padlen), sosfiltfilt(sos, x, axis=-1, padlen=padlen))
