@@ -416,3 +416,31 @@ def test_cogging_in_the_torque_band_reads_no_ripple_faster_than_half_the_sample_
     for h, X in term.grid_columns(rd, j, pick, rows):
         want = term.band_columns(rd, j, h)[:, [j], :][rows]
         np.testing.assert_allclose(X, want, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(want).max()), err_msg=str(h))
+
+
+def test_stop34_speed_figures_are_the_committed_runs():
+    """README's and docs/diagnosis.md's stop-34 speed figures: the totals, per-4-minute figures and ratios that
+    scripts/bench_diagnose_speed.py printed in the four committed runs (this release and the stop-33 code, in turn),
+    each run of the code it is said to be, and the goal not met in any of them."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    got = {}
+    for tag in ("", "-before"):
+        got[tag] = []
+        for i in (1, 2):
+            run = (root / f"docs/bench/diagnose-speed-2026-11-27-stop34{tag}-{i}.txt").read_text()
+            (total,) = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", run, flags=re.M)
+            assert ("code: /tmp/wt_head/diagnosis" if tag else "code: /work/main/diagnosis") in run
+            assert float(total[2]) > 1.0
+            got[tag].append(total)
+    (a1, a1m, a1x), (a2, a2m, a2x) = got[""]
+    (b1, b1m, b1x), (b2, b2m, b2x) = got["-before"]
+    readme = " ".join((root / "README.md").read_text().split())
+    assert (f"**{a1} / {a2} CPU s, per 4 minutes {a1m} / {a2m} ({a1x}x / {a2x}x the 30 s goal); the stop-33 code in "
+            f"the same session {b1} / {b2} CPU s, per 4 minutes {b1m} / {b2m} ({b1x}x / {b2x}x): not met**") in readme
+    assert f"- Speed: {a1x}x / {a2x}x the 30 s goal (stop 34's two runs; the stop-33 code {b1x}x / {b2x}x" in readme
+    doc = " ".join((root / "docs/diagnosis.md").read_text().split())
+    assert (f"this release takes {a1} / {a2} CPU s, {a1m} / {a2m} per 4 minutes, {a1x}x / {a2x}x the 30 s goal: not "
+            f"met; the stop-33 code in the same session {b1} / {b2} CPU s, {b1x}x / {b2x}x") in doc
