@@ -1860,3 +1860,27 @@ def test_stop33_the_fir_derivative_tried_is_its_rows():
             f"({c0['joint_elasticity']['joint_elasticity']}), false plays {s['false_names']['backlash']} "
             f"({s0['false_names']['backlash']}), {c['joint_elasticity']['backlash']} springs named plays") in doc
     assert [f["kind"] for f in next(r for r in rows if r["seed"] == 27)["named"]] == ["backlash"]
+
+
+def test_stop34_fresh_cases_420_459_are_the_readmes():
+    """Cases 420-459, drawn after stop 33's code was committed: the README's out-of-sample rates, kinds and the
+    clean case's false play are the committed rows' score."""
+    rows, s = _scored("fresh34-2026-11-27-stop34")
+    assert [r["seed"] for r in rows] == list(range(420, 460))
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == (29, 39, 10, 11, 7)
+    assert (s["visible_found"], s["visible"]) == (25, 30)
+    assert s["false_names"]["torque_offset"] == 5
+    c = s["confusion"]
+    got = {k: (c[k][k], sum(c[k].values())) for k in ("backlash", "joint_elasticity", "cogging", "coupling",
+                                                       "thermal_drift", "load_dependent_friction")}
+    assert got == {"backlash": (8, 12), "joint_elasticity": (7, 9), "cogging": (6, 8), "coupling": (4, 6),
+                   "thermal_drift": (3, 3), "load_dependent_friction": (1, 1)}
+    clean_named = [(r["seed"], [(f["kind"], f["joint"]) for f in r["named"]]) for r in rows
+                   if not r["effects"] and r["named"]]
+    assert clean_named == [(447, [("backlash", 4)])]
+    readme = " ".join(README.split())
+    assert ("plain command on each: 29 of 39 (74 %), clean 10 of 11 (91 %, under the 95 % goal)**, 7 false names "
+            "beside concealed effects (5 torque offsets)") in readme
+    assert ("backlash 8 of 12, elasticity 7 of 9, cogging 6 of 8, coupling 4 of 6, thermal drift 3 of 3, "
+            "load-dependent friction 1 of 1") in readme
+    assert "74 % on 420-459 with clean 10 of 11" in readme
