@@ -1884,3 +1884,25 @@ def test_stop34_fresh_cases_420_459_are_the_readmes():
     assert ("backlash 8 of 12, elasticity 7 of 9, cogging 6 of 8, coupling 4 of 6, thermal drift 3 of 3, "
             "load-dependent friction 1 of 1") in readme
     assert "74 % on 420-459 with clean 10 of 11" in readme
+
+
+def test_stop34_the_flank_plays_offset_null_changes_only_case_447():
+    """Stop 34's change (a play read on a flank must beat a constant torque on its motor), read on the fresh clean
+    case 447: all 300 simulator cases diagnosed again, only 447 changes (its false play gone, nothing in its place);
+    every other case's named rows are the committed ones to the last digit; the README's figures are these rows'."""
+    rows, s = _scored("sim-2026-11-27-stop34")
+    before, s0 = _scored("sim-2026-11-27-stop33")
+    fresh, sf = _scored("fresh34-2026-11-27-stop34-after")
+    fresh0, _ = _scored("fresh34-2026-11-27-stop34")
+    assert [r["seed"] for r in rows] == [r["seed"] for r in before] == list(range(0, 160)) + list(range(320, 420))
+    changed = [r["seed"] for r, q in zip(rows + fresh, before + fresh0) if r["named"] != q["named"]]
+    assert changed == [447]
+    assert next(r for r in fresh if r["seed"] == 447)["named"] == []
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"]) == (240, 293, 37, 38)
+    assert (s0["effects_found"], s0["clean_none"]) == (240, 37)
+    assert (sf["effects_found"], sf["effects"], sf["clean_none"], sf["clean"]) == (29, 39, 11, 11)
+    readme = " ".join(README.split())
+    assert ("all 300 cases diagnosed again, only case 447 changes (nothing named), so 420-459 read clean **11 of 11** "
+            "with this release, and in sample 240 of 293, clean 37 of 38 as before") in readme
+    doc = " ".join(DOC.split())
+    assert "**All 300 simulator cases diagnosed again** (0-159, 320-459): **only case 447 changes**" in doc

@@ -1063,3 +1063,35 @@ def test_a_slow_log_says_what_it_cannot_show():
     assert "noise of 0-50 Hz" in note and "weaker evidence" in note
     assert "up to 62.5 Hz only" in slow_log_note(125.0)
     assert slow_log_note(SLOW_LOG_HZ) == "" and slow_log_note(500.0) == ""
+
+
+def test_a_play_read_on_a_flank_must_beat_a_constant_torque_on_its_motor():
+    """search._nested_check with BacklashOnFlank's ``torque_offset`` null (stop 34): the fresh clean case 447 had a
+    play on a stiff flank of its wrist taking 14 % of its motor's select residual where a constant took 42 %: refused;
+    a true play (case 0: 96 % against a constant's 46 %) stands, and so does one with no offset read beside it (case
+    390, whose offset was accepted a step before)."""
+    from diagnosis.library import BacklashOnFlank, BacklashOnStiffFlank, Fitted, JointElasticity, TorqueOffset
+    from diagnosis.search import MismatchSearch, Scored
+
+    def scored(term, coef, std, gain, joint=4):
+        fit = Fitted(kind=term.kind, joint=joint, hyper=None, coef=np.array(coef), coef_std=np.array(std), effect={},
+                     summary="", plausible=True, why_not="")
+        return Scored(fitted=fit, fit_gain=gain, select_gain=gain, select_gain_all=gain, holdout_gain=gain,
+                      rms_before=np.ones(3), rms_after=np.ones(3), band="low", term=term)
+
+    assert "torque_offset" in BacklashOnFlank.extends and "torque_offset" in BacklashOnStiffFlank.extends
+    free = scored(BacklashOnFlank(), [0.002, -3e-4], [1e-4, 4e-5], 0.29)
+    stiff = scored(BacklashOnStiffFlank(), [0.002], [1e-4], 0.144)
+    offset = scored(TorqueOffset(), [-0.004], [1e-4], 0.425)
+    spring = scored(JointElasticity(), [-1e-4], [1e-4], -0.002)
+    MismatchSearch()._nested_check([free, stiff, offset, spring])
+    assert not stiff.fitted.plausible and "no better than torque_offset" in stiff.fitted.why_not
+    assert offset.fitted.plausible
+
+    true_play = scored(BacklashOnFlank(), [0.02, 4e-4], [1e-4, 1e-5], 0.955, joint=1)
+    MismatchSearch()._nested_check([true_play, scored(TorqueOffset(), [0.01], [1e-4], 0.455, joint=1),
+                                    scored(JointElasticity(), [1e-3], [1e-5], 0.30, joint=1)])
+    assert true_play.fitted.plausible, true_play.fitted.why_not
+    alone = scored(BacklashOnFlank(), [0.02, 4e-4], [1e-4, 1e-5], 0.28, joint=1)
+    MismatchSearch()._nested_check([alone, scored(JointElasticity(), [1e-3], [1e-5], 0.05, joint=1)])
+    assert alone.fitted.plausible, alone.fitted.why_not
