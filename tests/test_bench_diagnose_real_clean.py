@@ -110,3 +110,18 @@ def test_the_readme_payload_across_models_is_the_committed_rows():
     assert line.split(": ", 1)[1] in " ".join(_section().split())
     masses = [f["effect"]["mass"] for r in pay for f in r["named"] if f["kind"] == "payload_change"]
     assert len(masses) == 9 and all(abs(m - 2.0) <= 0.2 for m in masses)
+
+
+def test_stop34_the_clean_conditions_name_what_they_named_at_stop32():
+    """The 28 clean conditions and the 9 payload rows diagnosed again with stop 34's code (the flank play's constant
+    null, the compiled link simulation): every row names what stop 32's rows name, so the figures above hold; the
+    docs say so."""
+    old = json.loads(ROWS.read_text())
+    new = json.loads((ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-27-stop34.json").read_text())
+    assert [r["name"] for r in new["rows"]] == [r["name"] for r in old["rows"]] and len(new["rows"]) == 28
+    for a, b in zip(old["rows"], new["rows"]):
+        assert b["named"] == a["named"], a["name"]
+    assert new["payload_rows"] == old["payload_rows"]
+    assert sum(1 for r in new["rows"] if r["named"]) == 12
+    doc = " ".join((ROOT / "docs" / "diagnosis.md").read_text().split())
+    assert "the 28 clean real conditions and the 9 payload rows diagnosed again name what stop 32's rows name" in doc
