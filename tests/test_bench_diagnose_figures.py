@@ -1906,3 +1906,16 @@ def test_stop34_the_flank_plays_offset_null_changes_only_case_447():
             "with this release, and in sample 240 of 293, clean 37 of 38 as before") in readme
     doc = " ".join(DOC.split())
     assert "**All 300 simulator cases diagnosed again** (0-159, 320-459): **only case 447 changes**" in doc
+
+
+def test_stop34_fresh_cases_at_100_hz_are_the_readmes():
+    """Cases 420-459 read every 5th or 10th cycle (--log-hz 100) with this release: the README's figures."""
+    rows, s = _scored("fresh34-log100-2026-11-27-stop34")
+    assert [r["seed"] for r in rows] == list(range(420, 460))
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == (24, 39, 11, 11, 9)
+    assert (s["visible_found"], s["visible"]) == (22, 30)
+    c = s["confusion"]
+    assert (c["joint_elasticity"]["joint_elasticity"], c["backlash"]["backlash"]) == (3, 7)
+    readme = " ".join(README.split())
+    assert ("**24 of 39 (62 %), clean 11 of 11**, 9 false names, 22 of 30 visible; springs 3 of 9 (7 at the drawn "
+            "rates), plays 7 of 12 (8)") in readme
