@@ -1919,3 +1919,29 @@ def test_stop34_fresh_cases_at_100_hz_are_the_readmes():
     readme = " ".join(README.split())
     assert ("**24 of 39 (62 %), clean 11 of 11**, 9 false names, 22 of 30 visible; springs 3 of 9 (7 at the drawn "
             "rates), plays 7 of 12 (8)") in readme
+
+
+def test_stop34_a_compliance_neither_rattle_names_changes_only_case_136():
+    """Stop 34's second change (CompliantJoint, a reference): all 300 cases diagnosed again, only case 136 changes
+    its names (its false torque offset gone); the compliance it adds is reported on six cases, each with a play or
+    a spring concealed on that joint, never on a clean case."""
+    rows, s = _scored("sim-2026-11-27-stop34-compliance")
+    fresh, sf = _scored("fresh34-2026-11-27-stop34-compliance")
+    before, s0 = _scored("sim-2026-11-27-stop34")
+    fresh0, _ = _scored("fresh34-2026-11-27-stop34-after")
+    pairs = list(zip(rows + fresh, before + fresh0))
+    assert all(r["seed"] == q["seed"] for r, q in pairs) and len(pairs) == 300
+    assert [r["seed"] for r, q in pairs if r["named"] != q["named"]] == [136]
+    assert next(r for r in rows if r["seed"] == 136)["named"] == []
+    gained = [r["seed"] for r, q in pairs if r["unexplained"] != q["unexplained"]]
+    assert gained == [13, 111, 136, 342, 396, 435]
+    for r, q in pairs:
+        if r["seed"] in gained:
+            assert len(r["unexplained"]) > len(q["unexplained"])
+            j = next(x for x in r["unexplained"] if r["unexplained"].count(x) > q["unexplained"].count(x))
+            assert any(e["kind"] in ("backlash", "joint_elasticity") and j in e["joints"] for e in r["effects"])
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == (240, 293, 37, 38, 28)
+    assert _false(s0) == 29 and (sf["effects_found"], sf["clean_none"], sf["clean"]) == (29, 11, 11)
+    readme = " ".join(README.split())
+    assert ("only case 136 changes its names (its false torque offset gone), 28 false names in sample (29); six cases "
+            "report that shoulder's compliance, each with a play or a spring concealed there, no clean case") in readme

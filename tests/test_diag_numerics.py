@@ -1095,3 +1095,35 @@ def test_a_play_read_on_a_flank_must_beat_a_constant_torque_on_its_motor():
     alone = scored(BacklashOnFlank(), [0.02, 4e-4], [1e-4, 1e-5], 0.28, joint=1)
     MismatchSearch()._nested_check([alone, scored(JointElasticity(), [1e-3], [1e-5], 0.05, joint=1)])
     assert alone.fitted.plausible, alone.fitted.why_not
+
+
+def test_a_compliance_neither_rattle_names_is_reported_unexplained_not_dropped():
+    """CompliantJoint (a reference, never named): where gravity holds a link on a spring in the gear's limit cycle,
+    ElasticRattle refuses (a play's link reads alike there) and BacklashRattle refuses a swing under MIN_SWING; the
+    compliance is then the reference's: plausible, and reported as structure of that joint, not a named effect. A
+    gear that does not oscillate above the band, or a share missing far from a link's, is not one."""
+    from diagnosis.library import LIBRARY, REFERENCE_KINDS, BacklashRattle, CompliantJoint, ElasticRattle
+
+    assert CompliantJoint.reference and "compliance" in REFERENCE_KINDS
+    kinds = [type(t) for t in LIBRARY]
+    assert kinds.index(CompliantJoint) > max(kinds.index(BacklashRattle), kinds.index(ElasticRattle))
+
+    def fitted(rd, residual):
+        col = BacklashRattle().columns(rd, 0, None)[:, 0, 0]
+        skip = slice(int(rd.fs), -int(rd.fs))
+        return np.array([float(col[skip] @ residual[skip] / (col[skip] @ col[skip]))]), np.array([1e-3])
+
+    rd, residual = _rattling_link(2000.0, gravity=40.0)
+    coef, std = fitted(rd, residual)
+    assert not ElasticRattle().effect(rd, 0, None, coef, std)[2]
+    effect, summary, ok, why = CompliantJoint().effect(rd, 0, None, coef, std)
+    assert ok, why
+    assert effect["kind"] == "compliance" and effect["frequency_hz"] == pytest.approx(26.0, abs=1.0)
+    assert 1.0 < effect["share_missing"] < 2.0
+    # the same swing below half of MIN_SWING is no oscillation; a share far above a link's is not one either
+    small = dict(rd.extra)
+    small["rattle_oscillation"] = {0: (0.4 * BacklashRattle.MIN_SWING, 26.0)}
+    rd.extra = small
+    assert not CompliantJoint().effect(rd, 0, None, coef, std)[2]
+    rd.extra.pop("rattle_oscillation")
+    assert not CompliantJoint().effect(rd, 0, None, np.array([5.7]), std)[2]
