@@ -15,6 +15,19 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _piece(x: float, v: float, hl: float, kl: float, dl: float, k_half: float, g: float, tr: float):
+    """The contact's piece at deflection x (rad) and rate v (rad/s), for both branches of :func:`link_torques`:
+    its stiffness d force / d delta (k in contact plus the gravity stiffness g), its damping, its constant part
+    (k b/2 side - tau_r) and the force at (x, v) (force - stiff x - damp v). side: +1, -1 in contact, 0 in the gap."""
+    side = (1.0 if x > hl else 0.0) - (1.0 if x < -hl else 0.0)
+    touch = abs(side)
+    stiff = kl * touch + g
+    damp = dl * touch
+    force = k_half * side - tr
+    return stiff, damp, force, (force - stiff * x) - damp * v
+
+
 @njit(cache=True, nogil=True)
 def link_torques(hm: np.ndarray, tau_r: np.ndarray, gp: np.ndarray, owner: np.ndarray, half: np.ndarray,
                  k: np.ndarray, d: np.ndarray, h: float, n_sub: int, delta0: np.ndarray) -> np.ndarray:
@@ -57,12 +70,7 @@ def link_torques(hm: np.ndarray, tau_r: np.ndarray, gp: np.ndarray, owner: np.nd
             if resolved:
                 hm2 = hm_l * 0.5
                 for _ in range(n_sub):
-                    side = (1.0 if x > hl else 0.0) - (1.0 if x < -hl else 0.0)
-                    touch = abs(side)
-                    stiff = kl * touch + g
-                    damp = dl * touch
-                    force = k_half * side - tr
-                    f0 = (force - stiff * x) - damp * v
+                    stiff, damp, force, f0 = _piece(x, v, hl, kl, dl, k_half, g, tr)
                     num = (((force - (h_half * v + x) * stiff) + f0) * hm2) + v
                     den = ((h_half * stiff + damp) * hm2) + 1.0
                     v1 = num / den
@@ -70,12 +78,7 @@ def link_torques(hm: np.ndarray, tau_r: np.ndarray, gp: np.ndarray, owner: np.nd
                     v = v1
             else:
                 for _ in range(n_sub):
-                    side = (1.0 if x > hl else 0.0) - (1.0 if x < -hl else 0.0)
-                    touch = abs(side)
-                    stiff = kl * touch + g
-                    damp = dl * touch
-                    force = k_half * side - tr
-                    f0 = (force - stiff * x) - damp * v
+                    stiff, damp, force, f0 = _piece(x, v, hl, kl, dl, k_half, g, tr)
                     th = 0.5 if hm_l * (damp + h * abs(stiff)) < 1.0 else 1.0
                     omt = 1 - th
                     v_new = (v + hm_l * (omt * f0 + th * (force - stiff * (x + h * omt * v)))) \

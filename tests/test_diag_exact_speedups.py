@@ -19,17 +19,21 @@ def reference_link_torques(hm_joint, tau_r, gp_joint, owner, half, k, d, h, n_su
     hm_b, tr_b, gp_b = hm_joint[:, owner], tau_r[:, owner], gp_joint[:, owner]
     resolved = np.all((hm_b * (d + h * np.abs(k + gp_b)) < 1.0) & (hm_b * (h * np.abs(gp_b)) < 1.0), axis=1)
     states = np.empty((N, 2, L))
+
+    def piece(delta, ddelta, gp, tr):          # the contact's piece: +1, -1 in contact, 0 in the gap
+        side = np.subtract(delta > half, delta < neg_half, dtype=float)
+        touch = np.abs(side)
+        stiff = k * touch + gp
+        damp = d * touch
+        force = k_half * side - tr
+        return stiff, damp, force, force - stiff * delta - damp * ddelta
+
     for i in range(N):
         hm, tr, gp = hm_b[i], tr_b[i], gp_b[i]
         if resolved[i]:
             hm2 = hm * 0.5
             for _ in range(n_sub):
-                side = np.subtract(delta > half, delta < neg_half, dtype=float)
-                touch = np.abs(side)
-                stiff = k * touch + gp
-                damp = d * touch
-                force = k_half * side - tr
-                f0 = force - stiff * delta - damp * ddelta
+                stiff, damp, force, f0 = piece(delta, ddelta, gp, tr)
                 tmp = (force - (h_half * ddelta + delta) * stiff + f0) * hm2 + ddelta
                 den = (h_half * stiff + damp) * hm2 + 1.0
                 v1 = tmp / den
@@ -37,12 +41,7 @@ def reference_link_torques(hm_joint, tau_r, gp_joint, owner, half, k, d, h, n_su
                 ddelta = v1
         else:
             for _ in range(n_sub):
-                side = np.subtract(delta > half, delta < neg_half, dtype=float)
-                touch = np.abs(side)
-                stiff = k * touch + gp
-                damp = d * touch
-                force = k_half * side - tr
-                f0 = force - stiff * delta - damp * ddelta
+                stiff, damp, force, f0 = piece(delta, ddelta, gp, tr)
                 th = np.where(hm * (damp + h * np.abs(stiff)) < 1.0, 0.5, 1.0)
                 one_minus_th = 1 - th
                 v_new = (ddelta + hm * (one_minus_th * f0 + th * (force - stiff * (delta + h * one_minus_th * ddelta)))) \
