@@ -1888,11 +1888,12 @@ class CompliantJoint(BacklashRattle):
         alpha, width, f_osc, (free, g_rms, swing_torque), f_band, m_typ, swings, spring = \
             self._readout(rd, j, coef, std)
         lo, hi = self.ALPHA_RANGE
+        share = alpha > 3 * std[0] and lo < alpha < hi
         above = np.isfinite(f_osc) and f_osc >= 2 * f_band and width >= 0.5 * self.MIN_SWING
-        ok = bool(alpha > 3 * std[0] and lo < alpha < hi and above and width < 0.2)
-        why = ("" if ok else "share of the link's fast torque missing not significant or not a link's"
-               if not (alpha > 3 * std[0] and lo < alpha < hi) else
-               f"the gear does not oscillate above the band ({width:.2g} rad peak to peak at {f_osc:.3g} Hz)")
+        ok = bool(share and above and width < 0.2)
+        why = ("" if ok else "share of the link's fast torque missing not significant or not a link's" if not share
+               else f"the gear does not oscillate above the band ({width:.2g} rad peak to peak at {f_osc:.3g} Hz)"
+               if not above else f"the gear's oscillation ({width:.3g} rad) is not a compliance's")
         return ({"kind": self.kind, "joints": [j], "swing": width, "frequency_hz": f_osc, "share_missing": alpha},
                 f"joint {rd.joints[j]}'s gear oscillates above the torque band ({width:.3g} rad peak to peak at "
                 f"{f_osc:.3g} Hz) and the motors miss {alpha:.0%} of the link's torque for it", ok, why)

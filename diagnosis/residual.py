@@ -101,10 +101,7 @@ class ResidualData:
         spans laid end to end)."""
         if not np.isfinite(XT).all():
             XT = np.nan_to_num(XT)
-        sos = self._sos()
-        zi = self.extra.get("sos_zi")
-        if zi is None:
-            zi = self.extra["sos_zi"] = sosfilt_zi(sos).reshape(len(sos), 1, 2)
+        sos, zi = self._sos(), self._sos_zi()
         out = np.empty(XT.shape, dtype=XT.dtype)
         for a, b in (self.signals.runs if runs is None else runs):
             pad = min(3 * (2 * len(sos) + 1) * 4, b - a - 1)
@@ -117,6 +114,15 @@ class ResidualData:
             st = self.signals.settings
             sos = self.extra["sos"] = butter(st.order, st.fc_acceleration_hz, btype="low", fs=self.fs, output="sos")
         return sos
+
+    def _sos_zi(self) -> np.ndarray:
+        """:meth:`_sos`' initial state for a unit step, (sections, 1, 2) (the layout :func:`filtfilt_rows` takes),
+        made once per recording."""
+        zi = self.extra.get("sos_zi")
+        if zi is None:
+            sos = self._sos()
+            zi = self.extra["sos_zi"] = sosfilt_zi(sos).reshape(len(sos), 1, 2)
+        return zi
 
     MEMORY = 1e-24      # lowpass_spans: what the filter remembers of a sample this far back (of its peak response)
 

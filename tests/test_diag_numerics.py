@@ -1125,5 +1125,8 @@ def test_a_compliance_neither_rattle_names_is_reported_unexplained_not_dropped()
     small["rattle_oscillation"] = {0: (0.4 * BacklashRattle.MIN_SWING, 26.0)}
     rd.extra = small
     assert not CompliantJoint().effect(rd, 0, None, coef, std)[2]
+    small["rattle_oscillation"] = {0: (0.25, 26.0)}            # a swing of a quarter radian is no compliance's
+    _, _, ok_wide, why_wide = CompliantJoint().effect(rd, 0, None, coef, std)
+    assert not ok_wide and "is not a compliance's" in why_wide
     rd.extra.pop("rattle_oscillation")
     assert not CompliantJoint().effect(rd, 0, None, np.array([5.7]), std)[2]
