@@ -274,3 +274,34 @@ def test_a_log_read_every_kth_cycle_is_what_a_slower_logger_writes(tmp_path, rob
     for bad in (0, 2.5):
         with pytest.raises(ValueError, match="whole number"):
             decimate_log(path, tmp_path / "bad.mcap", bad)
+
+
+def test_chunk_breakup_equals_mcaps_own_and_refuses_a_record_past_the_chunk(tmp_path, robot):
+    """The scan's chunk reader (one unpack per message header) gives exactly mcap's ``breakup_chunk`` records --
+    schemas, channels and messages, in order -- on every chunk of a js2 log; a message whose length runs past its
+    chunk's end is refused instead of returned short."""
+    import dataclasses
+    import io
+
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    from js2spec.mcap_scan import _breakup
+
+    path = tmp_path / "a.mcap"
+    _write(path, robot, n_cycles=3000)
+    chunks = [r for r in StreamReader(io.BytesIO(path.read_bytes()), emit_chunks=True).records
+              if isinstance(r, Chunk)]
+    assert len(chunks) >= 2
+    n = 0
+    for chunk in chunks:
+        ours, theirs = _breakup(chunk), breakup_chunk(chunk, validate_crc=True)
+        assert ours == theirs
+        n += len(ours)
+    assert n > 6000               # 3000 feedback + 3000 command messages, the events and channels
+    # a chunk whose last message says it is 100 bytes longer than the chunk holds
+    data = b"".join([bytes([0x05]), (22 + 4 + 100).to_bytes(8, "little"), bytes(22), b"abcd"])
+    bad = dataclasses.replace(chunks[0], data=data, compression="", uncompressed_size=len(data),
+                              uncompressed_crc=0)
+    with pytest.raises(ValueError, match="runs past"):
+        _breakup(bad)
