@@ -346,7 +346,9 @@ def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bo
     res = diagnose(model, rec)
     t2 = time.time()
     named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
-              "report_gain": f["holdout_gain"]} for f in res.findings()]
+              "report_gain": f["holdout_gain"], "select_gain": f["select_gain"], "fit_gain": f["fit_gain"],
+              "select_gain_all": f["select_gain_all"], "select_gain_capped": f["select_gain_capped"],
+              "hyper": f["hyper"]} for f in res.findings()]
     row = {"seed": case["seed"], "case": case, "effects": case["effects"], "cycle_hz": case.get("cycle_hz") / every,
            "named": named, "unexplained": [u["joint_index"] for u in res.unexplained()], "visibility": vis,
            "sim_s": sim_s, "diagnose_s": round(t2 - t1, 1)}
