@@ -24,8 +24,9 @@ what it does:
      'validation' trial (or when it is the only one): REPORT = the last 30 %% of the recording, the rest in
      interleaved time blocks, 2/3 FIT, 1/3 SELECT;
   3. fits every candidate term (named effects: %s; each on every joint/link) on FIT, ranks them on SELECT and
-     walks down the ranking to the first that cuts the SELECT residual of its motors by --min-gain and beats the
-     null of a plain refit of the model's own friction; accepts it, ranks again, until none passes (at most
+     walks down the ranking to the first that cuts the SELECT residual of its motors by --min-gain (its FIT
+     residual by --min-fit-gain) and beats the null of a plain refit of the model's own friction; accepts it,
+     ranks again, until none passes (at most
      --max-terms); structure only the refit explains is reported 'unexplained', never named (so is a constant
      torque offset on a recording the model was identified from: the model's own choice, js2-identify --offsets);
   4. reports the gains on REPORT alone, which the search never saw;
@@ -53,7 +54,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--kinds", nargs="+", choices=KINDS, metavar="KIND",
                    help=f"candidate kinds to try (default: all: {', '.join(KINDS)})")
     p.add_argument("--min-gain", type=float, default=0.12,
-                   help="select (and fit) residual reduction a term must reach on its motors (default 0.12)")
+                   help="select residual reduction a term must reach on its motors (default 0.12)")
+    p.add_argument("--min-fit-gain", type=float, default=None,
+                   help="fit residual reduction a term must reach on its motors, on the rows it was fitted to "
+                        "(default 0.18, or --min-gain when that is higher)")
     p.add_argument("--max-terms", type=int, default=4, help="most terms to accept (default 4)")
     p.add_argument("--min-speed", type=float, default=0.01,
                    help="rad/s at the JOINT (so any gear ratio): slower samples of a joint are left out, friction "
@@ -75,8 +79,12 @@ def main(argv=None) -> int:
     if not 0 < args.min_gain < 1:
         print("js2-diagnose: error: --min-gain must lie between 0 and 1", file=sys.stderr)
         return 2
+    if args.min_fit_gain is not None and not 0 < args.min_fit_gain < 1:
+        print("js2-diagnose: error: --min-fit-gain must lie between 0 and 1", file=sys.stderr)
+        return 2
     opt = DiagnoseOptions(holdout_trial=args.holdout_trial, fit_trials=args.fit_trials, kinds=args.kinds,
-                          min_gain=args.min_gain, max_terms=args.max_terms, min_speed=args.min_speed,
+                          min_gain=args.min_gain, min_fit_gain=args.min_fit_gain, max_terms=args.max_terms,
+                          min_speed=args.min_speed,
                           progress=not args.quiet and sys.stderr.isatty())
     try:
         from js2spec.files import check_output_folder

@@ -257,6 +257,29 @@ def test_a_torque_offset_under_half_a_count_of_the_current_read_back_is_not_name
     assert search._why_rejected(scored(Stribeck(), 2.0)) == ""
 
 
+def test_a_term_that_removes_little_of_its_motors_fit_residual_is_not_named():
+    """The fit rows are the term's own: a term that removes under ``MismatchSearch.MIN_FIT_GAIN`` (0.18) of its
+    motor's residual there is not named, however its select gain reads (bench case 390's false offset on motor 5:
+    fit 0.14, select 0.42); at 0.18 and above it passes that test. ``--min-gain`` above the floor raises it too, and
+    ``min_fit_gain`` sets it outright."""
+    from diagnosis.library import Fitted, TorqueOffset
+    from diagnosis.search import MismatchSearch, Scored
+
+    def scored(fit_gain):
+        f = Fitted(kind="torque_offset", joint=4, hyper=None, coef=np.array([1e-4]), coef_std=np.array([1e-6]),
+                   effect={}, summary="", plausible=True, why_not="")
+        return Scored(fitted=f, fit_gain=fit_gain, select_gain=0.42, select_gain_all=0.06, holdout_gain=0.18,
+                      rms_before=np.ones(6), rms_after=np.ones(6), band="low", term=TorqueOffset(), counts=3.0)
+
+    search = MismatchSearch()
+    assert search.min_fit_gain == MismatchSearch.MIN_FIT_GAIN == 0.18
+    assert search._why_rejected(scored(0.137)).startswith("fit gain 13.7% < 18%: on the rows it was fitted to")
+    assert search._why_rejected(scored(0.18)) == ""
+    assert MismatchSearch(min_gain=0.3).min_fit_gain == 0.3
+    assert "fit gain 25.0% < 30%" in MismatchSearch(min_gain=0.3)._why_rejected(scored(0.25))
+    assert MismatchSearch(min_fit_gain=0.12)._why_rejected(scored(0.137)) == ""
+
+
 def _cycling_gears(f_play, f_shaken, a_shaken, fs=250.0, seconds=20.0):
     """Fake ResidualData of three gears at ``fs``: joint 1's in a limit cycle at ``f_play`` (4 mrad), joint 2's
     shaken at ``f_shaken`` (``a_shaken`` rad), joint 3's oscillating on its own at 37 Hz (3 mrad), each over a slow
