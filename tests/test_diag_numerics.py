@@ -258,7 +258,7 @@ def test_a_torque_offset_under_half_a_count_of_the_current_read_back_is_not_name
 
 
 def test_a_term_that_removes_little_of_its_motors_fit_residual_is_not_named():
-    """The fit rows are the term's own: a term that removes under ``MismatchSearch.MIN_FIT_GAIN`` (0.18) of its
+    """The fit rows are the term's own: a named term that removes under ``MismatchSearch.MIN_FIT_GAIN`` (0.18) of its
     motor's residual there is not named, however its select gain reads (bench case 390's false offset on motor 5:
     fit 0.14, select 0.42); at 0.18 and above it passes that test. ``--min-gain`` above the floor raises it too, and
     ``min_fit_gain`` sets it outright."""
@@ -278,6 +278,14 @@ def test_a_term_that_removes_little_of_its_motors_fit_residual_is_not_named():
     assert MismatchSearch(min_gain=0.3).min_fit_gain == 0.3
     assert "fit gain 25.0% < 30%" in MismatchSearch(min_gain=0.3)._why_rejected(scored(0.25))
     assert MismatchSearch(min_fit_gain=0.12)._why_rejected(scored(0.137)) == ""
+    # a reference (never named: the friction refit) keeps min_gain: it is the null, and what it takes is not left
+    # for a false name (a clean real kuka_3 window, kuka_1 model: a refit at fit gain 0.13 kept a play off lwr_1)
+    from diagnosis.library import FrictionRefit
+    refit = scored(0.137)
+    refit.term, refit.fitted.kind = FrictionRefit(), "friction_refit"
+    assert FrictionRefit.reference and search._why_rejected(refit) == ""
+    refit.fit_gain = 0.11
+    assert search._why_rejected(refit).startswith("fit gain 11.0% < 12%")
 
 
 def _cycling_gears(f_play, f_shaken, a_shaken, fs=250.0, seconds=20.0):
