@@ -124,8 +124,8 @@ def _parse_at(mm, pos: int, size: int):
     if end > size:
         raise EOFError(f"record of {length} bytes runs past the end of the file")
     if op == _OP_MESSAGE_INDEX:
-        # an index of the chunk before it: never read (the messages are), so not parsed (a third of the scan's time
-        # on a 500 Hz log went to its per-entry reads); its length, checked above, is all the scan needs of it
+        # an index of the chunk before it: never read (the messages are), so not parsed (its per-entry reads were
+        # 0.15 of the scan's 0.54 s on a 93k-cycle 500 Hz log); its length, checked above, is all the scan needs
         return _SKIPPED, end
     reader = StreamReader(io.BytesIO(mm[pos:end]), skip_magic=True, emit_chunks=True, validate_crcs=True)
     return next(iter(reader.records)), end
@@ -137,8 +137,8 @@ _MESSAGE_HEAD = struct.Struct("<HIQQ")          # channel id, sequence, log time
 def _breakup(chunk):
     """The Schema, Channel and Message records inside a chunk, as mcap's ``breakup_chunk(chunk, validate_crc=True)``
     gives them (decompressed by mcap's own ``get_chunk_data_stream``, its CRC checked there), but with the
-    messages' fixed 22-byte header unpacked in one call each instead of mcap's per-field stream reads: reading a
-    4-minute 500 Hz session spent ~2 s there (`scripts/bench_diagnose_speed.py`). A record that runs past the
+    messages' fixed 22-byte header unpacked in one call each instead of mcap's per-field stream reads (about 0.2 s
+    of the 2.4 s ``read_log`` took on the speed bench's 93k-cycle clean session). A record that runs past the
     chunk's end raises, where mcap's reader would return it short."""
     from mcap.data_stream import ReadDataStream
     from mcap.records import Channel, Message, Schema
