@@ -56,8 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--min-gain", type=float, default=0.12,
                    help="select residual reduction a term must reach on its motors (default 0.12)")
     p.add_argument("--min-fit-gain", type=float, default=None,
-                   help="fit residual reduction a term must reach on its motors, on the rows it was fitted to "
-                        "(default 0.18, or --min-gain when that is higher)")
+                   help="fit residual reduction a named term must reach on its motors, on the rows it was fitted "
+                        "to (default 0.18, or --min-gain when that is higher; what is reported 'unexplained' keeps "
+                        "--min-gain)")
     p.add_argument("--max-terms", type=int, default=4, help="most terms to accept (default 4)")
     p.add_argument("--min-speed", type=float, default=0.01,
                    help="rad/s at the JOINT (so any gear ratio): slower samples of a joint are left out, friction "
