@@ -284,6 +284,11 @@ def _false(s) -> int:
     return sum(s["false_names"].values())
 
 
+def _names(r) -> list:
+    """A row's named (kind, joint) pairs, sorted: what two diagnoses of one case are compared on."""
+    return sorted((f["kind"], f["joint"]) for f in r["named"])
+
+
 def _assert_rates(sets: dict, want: dict) -> None:
     """Each set's (right, effects), (visible right, visible), (clean none, clean) and false names are ``want``'s."""
     for name, (right, vis, clean, false) in want.items():
@@ -389,8 +394,7 @@ def test_nores_totals_and_what_changed(nores, acc):
     changed = []
     for w in ACC_SETS:
         for a, n in zip(acc[w][0], nores[w][0]):
-            key = lambda r: sorted((f["kind"], f["joint"]) for f in r["named"])
-            if key(a) != key(n):
+            if _names(a) != _names(n):
                 changed.append(a["seed"])
     assert changed == [29, 45, 49, 65, 85, 100, 136, 151]
     section = DOC[DOC.index("### Earlier in this release: an elastic joint's resonance"):DOC.index("### The last stop:")]
@@ -595,9 +599,7 @@ def _changed_names(before: dict, after: dict) -> dict:
     b = {r["seed"]: r for k in ACC_SETS for r in after[k][0]}
     assert [r["effects"] for r in a.values()] == [r["effects"] for r in b.values()]        # the same draws
 
-    def names(r):
-        return sorted((f["kind"], f["joint"]) for f in r["named"])
-    return {s: (names(a[s]), names(b[s])) for s in a if names(a[s]) != names(b[s])}
+    return {s: (_names(a[s]), _names(b[s])) for s in a if _names(a[s]) != _names(b[s])}
 
 
 def _payload_within_5(rows: list) -> dict:
@@ -805,9 +807,7 @@ def test_stop22_out_of_sample_cases_in_the_readme_and_docs_are_the_benchmarks():
         assert _false(s) == false
     assert (before["clean_none"], before["clean"]) == (2, 3) and (after["clean_none"], after["clean"]) == (3, 3)
 
-    def names(r):
-        return sorted((f["kind"], f["joint"]) for f in r["named"])
-    changed = {a["seed"] for a, b in zip(before_rows, after_rows) if names(a) != names(b)}
+    changed = {a["seed"] for a, b in zip(before_rows, after_rows) if _names(a) != _names(b)}
     assert changed == {179, 191}
     c191 = next(r for r in before_rows if r["seed"] == 191)
     assert c191["effects"] == [] and [f["kind"] for f in c191["named"]] == ["thermal_drift"]
@@ -895,8 +895,8 @@ def test_stop23_changes_only_these_cases_on_the_same_recordings(stop23):
             pairs = ([(x, y) for k in ACC_SETS for x, y in zip(a[k][0], b[k][0])] if i == 0 else list(zip(a[0], b[0])))
             for x, y in pairs:
                 assert x["seed"] == y["seed"] and x["effects"] == y["effects"]
-                nx = sorted((f["kind"], f["joint"]) for f in x["named"])
-                ny = sorted((f["kind"], f["joint"]) for f in y["named"])
+                nx = _names(x)
+                ny = _names(y)
                 if nx != ny:
                     out[x["seed"]] = (nx, ny)
         return out
@@ -1069,9 +1069,6 @@ def test_stop24_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(stop24):
 def test_stop24_changes_only_these_cases_on_the_same_recordings(stop24):
     """Against the stop-23 code on the same 240 recordings: the names change in 17, 53, 166 (a false name dropped
     each) and 228 (a right play dropped); the masses in 17, 53, 151 and the false 20 and 147 move."""
-    def named(row):
-        return sorted((f["kind"], f["joint"]) for f in row["named"])
-
     def masses(row):
         return {f["joint"]: round(f["effect"]["mass"], 4) for f in row["named"] if f["kind"] == "payload_change"}
 
@@ -1081,8 +1078,8 @@ def test_stop24_changes_only_these_cases_on_the_same_recordings(stop24):
         pairs = ([(x, y) for k in ACC_SETS for x, y in zip(a[k][0], b[k][0])] if i == 0 else list(zip(a[0], b[0])))
         for x, y in pairs:
             assert x["seed"] == y["seed"] and x["effects"] == y["effects"] and x["visibility"] == y["visibility"]
-            if named(x) != named(y):
-                changed[x["seed"]] = (named(x), named(y))
+            if _names(x) != _names(y):
+                changed[x["seed"]] = (_names(x), _names(y))
             if masses(x) and masses(x) != masses(y):
                 moved[x["seed"]] = (masses(x), masses(y))
     assert changed == {
@@ -1132,8 +1129,7 @@ def test_stop24_fresh_cases_drawn_after_the_change_in_the_readme_and_docs_are_th
     before, b = _scored("fresh24-2026-11-26-stop24-before")
     assert [r["seed"] for r in rows] == [r["seed"] for r in before] == list(range(240, 280))
     assert _rates(s) == (21, 37, 20, 26, 10, 10, 7) and _rates(b) == _rates(s)
-    assert all(sorted((f["kind"], f["joint"]) for f in x["named"]) == sorted((f["kind"], f["joint"]) for f in y["named"])
-               for x, y in zip(rows, before))
+    assert all(_names(x) == _names(y) for x, y in zip(rows, before))
     kinds = {k: (s["confusion"][k][k], sum(s["confusion"][k].values()))
              for k in ("cogging", "backlash", "joint_elasticity", "coupling", "thermal_drift")}
     assert kinds == {"cogging": (8, 11), "backlash": (5, 7), "joint_elasticity": (3, 12), "coupling": (3, 5),
@@ -1201,17 +1197,14 @@ def test_stop25_rates_per_set_in_the_readme_and_docs_are_the_benchmarks(stop25):
 def test_stop25_changes_only_these_cases_on_the_same_recordings(stop25):
     """Against the stop-24 code on the same 280 recordings: 8 elastic base axes named elastic (was a play), 6
     ripples named, case 270's elbow play; false plays on 57, 145 and 194; case 176 loses its coupling."""
-    def named(row):
-        return sorted((f["kind"], f["joint"]) for f in row["named"])
-
     changed = {}
     for i in range(4):
         a, b = stop25["stop24"][i], stop25["stop25"][i]
         pairs = ([(x, y) for k in ACC_SETS for x, y in zip(a[k][0], b[k][0])] if i == 0 else list(zip(a[0], b[0])))
         for x, y in pairs:
             assert x["seed"] == y["seed"] and x["effects"] == y["effects"] and x["visibility"] == y["visibility"]
-            if named(x) != named(y):
-                changed[x["seed"]] = (named(x), named(y))
+            if _names(x) != _names(y):
+                changed[x["seed"]] = (_names(x), _names(y))
     elastic_base = {56, 97, 166, 181, 217, 250, 262, 277}
     for seed in elastic_base:
         was, now = changed[seed]
@@ -1280,10 +1273,7 @@ def test_stop25_fresh_cases_drawn_after_the_change_in_the_readme_and_docs_are_th
     before, b = _scored("fresh25-2026-11-26-stop25-before")
     assert [r["seed"] for r in rows] == [r["seed"] for r in before] == list(range(280, 320))
     assert _rates(s) == (31, 40, 28, 31, 7, 7, 9) and _rates(b) == (30, 40, 28, 31, 7, 7, 10)
-    diff = {x["seed"]: (sorted((f["kind"], f["joint"]) for f in x["named"]),
-                        sorted((f["kind"], f["joint"]) for f in y["named"]))
-            for x, y in zip(before, rows) if sorted((f["kind"], f["joint"]) for f in x["named"]) !=
-            sorted((f["kind"], f["joint"]) for f in y["named"])}
+    diff = {x["seed"]: (_names(x), _names(y)) for x, y in zip(before, rows) if _names(x) != _names(y)}
     assert diff == {298: ([("backlash", 0)], [("joint_elasticity", 0)])}
     case = next(r for r in rows if r["seed"] == 298)
     k_true = next(e["stiffness"] for e in case["effects"] if e["kind"] == "joint_elasticity")
@@ -1363,16 +1353,13 @@ def test_stop26_changes_only_these_cases_on_the_same_recordings(stop26):
     """Against the stop-25 code on the same 320 recordings: torque offsets beside a rattle's limit cycle are no
     longer named (reported unexplained), the offsets beside a payload that moved its mass are dropped, six elastic
     shoulders once named plays are named springs; no play is lost."""
-    def named(row):
-        return sorted((f["kind"], f["joint"]) for f in row["named"])
-
     this, before = _rows_0_319(stop26["stop26"]), _rows_0_319(stop26["stop25"])
     assert [r["seed"] for r in this] == [r["seed"] for r in before] == list(range(320))
     changed = {}
     for x, y in zip(before, this):
         assert x["effects"] == y["effects"] and x["visibility"] == y["visibility"]
-        if named(x) != named(y):
-            changed[x["seed"]] = (named(x), named(y))
+        if _names(x) != _names(y):
+            changed[x["seed"]] = (_names(x), _names(y))
     springs = {29, 49, 109, 175, 199, 205}
     for seed in springs:
         was, now = changed[seed]
@@ -1391,8 +1378,8 @@ def test_stop26_changes_only_these_cases_on_the_same_recordings(stop26):
     # no true play lost anywhere
     for x, y in zip(before, this):
         for e in x["effects"]:
-            if e["kind"] == "backlash" and ("backlash", e["joints"][0]) in named(x):
-                assert ("backlash", e["joints"][0]) in named(y), x["seed"]
+            if e["kind"] == "backlash" and ("backlash", e["joints"][0]) in _names(x):
+                assert ("backlash", e["joints"][0]) in _names(y), x["seed"]
 
     assert (_false(bench_score(before)), _false(bench_score(this))) == (71, 47)
     assert ((_false_kind(before, "torque_offset"), _false_kind(this, "torque_offset"))) == (22, 3)
@@ -1494,10 +1481,7 @@ def test_stop26_fresh_cases_drawn_after_the_changes_in_the_readme_and_docs_are_t
     before, b = _scored("fresh27-2026-11-26-stop25")
     assert [r["seed"] for r in rows] == [r["seed"] for r in before] == list(range(320, 360))
     assert _rates(s) == (34, 44, 27, 32, 6, 6, 4) and _rates(b) == (35, 44, 28, 32, 6, 6, 5)
-    diff = {x["seed"]: (sorted((f["kind"], f["joint"]) for f in x["named"]),
-                        sorted((f["kind"], f["joint"]) for f in y["named"]))
-            for x, y in zip(before, rows) if sorted((f["kind"], f["joint"]) for f in x["named"]) !=
-            sorted((f["kind"], f["joint"]) for f in y["named"])}
+    diff = {x["seed"]: (_names(x), _names(y)) for x, y in zip(before, rows) if _names(x) != _names(y)}
     assert diff == {328: ([("joint_elasticity", 0), ("torque_offset", 2)], [("joint_elasticity", 0)]),
                     339: ([("backlash", 1), ("torque_offset", 1), ("torque_offset", 2)],
                           [("joint_elasticity", 1), ("payload_change", 5)])}
@@ -1505,7 +1489,7 @@ def test_stop26_fresh_cases_drawn_after_the_changes_in_the_readme_and_docs_are_t
     assert sorted(e["kind"] for e in case["effects"]) == ["backlash", "thermal_drift"]
     assert next(f["effect"]["mass"] for f in case["named"] if f["kind"] == "payload_change") == pytest.approx(
         -0.033, abs=0.0005)
-    assert [sorted((f["kind"], f["joint"]) for f in r["named"]) for r in rows if r["seed"] == 337] == [
+    assert [_names(r) for r in rows if r["seed"] == 337] == [
         [("backlash", 1), ("thermal_drift", 0)]]
     kinds = {k: (s["confusion"][k][k], sum(s["confusion"][k].values()))
              for k in ("cogging", "backlash", "joint_elasticity", "coupling", "thermal_drift")}
@@ -1560,8 +1544,7 @@ def test_stop27_rates_in_the_readme_are_the_benchmarks(stop27):
             "on motor 2 and a coupling on "
             "motor 6 named on two clean 1000 Hz cases, 373 and 375), no other false name; the stop-26 code names the "
             "same on every case") in readme
-    assert [sorted((f["kind"], f["joint"]) for f in r["named"]) for r in this[2][0]] == \
-        [sorted((f["kind"], f["joint"]) for f in r["named"]) for r in before[2][0]]
+    assert [_names(r) for r in this[2][0]] == [_names(r) for r in before[2][0]]
     assert "142 of the 151 visible effects are named" in readme
     s = bench_score([r for k in ACC_SETS for r in this[0][k][0]])
     for label, row in s["confusion"].items():
@@ -1576,9 +1559,6 @@ def test_stop27_rates_in_the_readme_are_the_benchmarks(stop27):
 def test_stop27_changes_only_the_false_payloads_beside_a_rattle(stop27):
     """Against the stop-26 code on the same 200 recordings (0-159, 320-359): exactly cases 49, 138, 147 and 339
     change, each losing its negative payload on the hand and nothing else; case 20's stays."""
-    def named(row):
-        return sorted((f["kind"], f["joint"]) for f in row["named"])
-
     def rows(sets):
         return [r for k in ACC_SETS for r in sets[0][k][0]] + sets[1][0]
 
@@ -1586,8 +1566,8 @@ def test_stop27_changes_only_the_false_payloads_beside_a_rattle(stop27):
     changed = {}
     for x, y in zip(before, this):
         assert x["seed"] == y["seed"] and x["effects"] == y["effects"]
-        if named(x) != named(y):
-            changed[x["seed"]] = (named(x), named(y))
+        if _names(x) != _names(y):
+            changed[x["seed"]] = (_names(x), _names(y))
     assert set(changed) == {49, 138, 147, 339}
     for was, now in changed.values():
         assert [n for n in was if n != ("payload_change", 5)] == now and ("payload_change", 5) in was
@@ -1595,7 +1575,7 @@ def test_stop27_changes_only_the_false_payloads_beside_a_rattle(stop27):
             if f["kind"] == "payload_change"]
     assert all(m < 0 for m in lost)
     case20 = next(r for r in this if r["seed"] == 20)
-    assert ("payload_change", 5) in named(case20)
+    assert ("payload_change", 5) in _names(case20)
     readme = " ".join(README.split())
     assert "exactly four cases change, each losing a false payload (49, 138, 147, 339); case 20's stays" in readme
 
@@ -1672,7 +1652,7 @@ def test_stop29_thermal_floor_changes_only_four_cases_and_the_readmes_rates():
     changed = {}
     for r in rows:
         was = sorted((f["kind"], f["joint"]) for f in before[r["seed"]]["named"])
-        now = sorted((f["kind"], f["joint"]) for f in r["named"])
+        now = _names(r)
         assert any(k == "thermal_drift" for k, _ in was)
         if was != now:
             changed[r["seed"]] = (was, now)
@@ -1945,10 +1925,6 @@ def test_stop34_a_compliance_neither_rattle_names_changes_only_case_136():
     readme = " ".join(README.split())
     assert ("only case 136 changes its names (its false torque offset gone), 28 false names in sample (29); six cases "
             "report that shoulder's compliance, each with a play or a spring concealed there, no clean case") in readme
-
-
-def _names(r) -> list:
-    return sorted((f["kind"], f["joint"]) for f in r["named"])
 
 
 def test_stop35_the_fit_gain_floor_separates_the_false_names_it_was_read_on():
