@@ -35,7 +35,9 @@ refit of the model's friction, which any recording of another day may need) must
 the select rows by its ``Term.margin`` more (a quarter; 4 % for a backlash over its spring); the simpler reference terms (``Term.reference``) are never named an effect
 — when one passes, the motor is reported ``unexplained`` (structure remains that no named physics explains). A
 reference that ``Term.yields`` (the stiction step at reversals) steps aside when it tops the ladder and a named term
-passes every test on its motor.
+passes every test on its motor. A ``Term.last_resort`` reference (a lag too large for a transmission) is not in the
+ladder: it is scored after it, on what the findings leave once they are estimated together, in the ladder steps
+(``max_terms``) they left unused, so it never takes a step or a share of torque a finding could have had.
 """
 from __future__ import annotations
 
@@ -312,7 +314,7 @@ class MismatchSearch:
         st = self._stats(rd, band, r, w)
         rw = st["rw"]
         # the ladder's own candidates: a fit is kept until an accepted term changes the residual of its motors
-        key = (term, j) if grid is None and tuple(coef_rows) == ("fit_rows",) else None
+        key = (term.fit_key(), j) if grid is None and tuple(coef_rows) == ("fit_rows",) else None
         version = tuple(self._versions[band][motors]) if key is not None else None
         hit = self._fits.get(key) if key is not None else None
         if hit is not None and hit[0] == version:
@@ -435,62 +437,68 @@ class MismatchSearch:
         self.dropped_: list[tuple[Scored, str]] = []   # accepted, then dropped by the joint refit (and why)
         tasks = [(t, j) for t in self.library for j in (range(rd.n) if t.per_joint else t.joints(rd))]
         taken = set()
-        for step in range(self.max_terms):
-            scored = []
-            it = tasks if self.progress is None else self.progress(tasks, desc=f"diagnosis step {step + 1}")
-            for term, j in it:
-                if (term.kind, j) in taken:
-                    continue
-                s = self._evaluate(rd, term, j, res, weights)
-                if s is not None:
-                    scored.append(s)
-            self.tried_ += len(scored)
-            self._nested_check(scored)
-            self._shift_check(rd, scored, res, weights)
-            for s in scored:                       # what an accepted term already explains is not named again
-                why = s.term.already_found(rd, s, self.accepted_) if s.term is not None and s.fitted.plausible else ""
-                if why:
-                    s.fitted.plausible, s.fitted.why_not = False, why
-            scored.sort(key=lambda s: (s.fitted.plausible, s.select_gain_all), reverse=True)
-            self.rankings_.append(scored)
-            best = None
-            for s in scored:                       # walk down the ranking: the first that passes every test
-                s.rejected = self._why_rejected(s)
-                if not s.rejected:
-                    best = s
+
+        def ladder(tasks, steps, what="diagnosis step"):
+            for step in range(steps):
+                scored = []
+                it = tasks if self.progress is None else self.progress(tasks, desc=f"{what} {step + 1}")
+                for term, j in it:
+                    if (term.kind, j) in taken:
+                        continue
+                    s = self._evaluate(rd, term, j, res, weights)
+                    if s is not None:
+                        scored.append(s)
+                self.tried_ += len(scored)
+                self._nested_check(scored)
+                self._shift_check(rd, scored, res, weights)
+                for s in scored:                       # what an accepted term already explains is not named again
+                    why = (s.term.already_found(rd, s, self.accepted_) if s.term is not None and s.fitted.plausible
+                           else "")
+                    if why:
+                        s.fitted.plausible, s.fitted.why_not = False, why
+                scored.sort(key=lambda s: (s.fitted.plausible, s.select_gain_all), reverse=True)
+                self.rankings_.append(scored)
+                best = self._pick(scored)
+                if best is None:
                     break
-            if best is None:
-                break
-            if best.term.yields:                   # a reference that steps aside for a named term on its motor
-                best = next((s for s in scored if s.term is not None and not s.term.reference
-                             and s.fitted.joint == best.fitted.joint and not self._why_rejected(s)), best)
-            best = best.term.resolve(rd, best, scored, lambda s: not self._why_rejected(s),   # one mass, two links
-                                     accepted=self.accepted_ + self.references_)
-            # selected on SELECT: its coefficients are now estimated on FIT + SELECT (hyper-parameter kept); the
-            # report rows stay unseen
-            final = self._evaluate(rd, best.term, best.fitted.joint, res, weights,
-                                   grid=[best.fitted.hyper], coef_rows=("fit_rows", "select_rows"))
-            if final is not None and final.fitted.plausible:
-                best.fitted, best.holdout_gain, best.rms_after = final.fitted, final.holdout_gain, final.rms_after
-            if getattr(best, "note", ""):
-                best.fitted.summary += f" ({best.note})"
-            taken.add((best.fitted.kind, best.fitted.joint))
-            (self.references_ if best.term.reference else self.accepted_).append(best)
-            self._order.append(best)
-            # the accepted term becomes part of the model, in both bands
-            term = best.term
-            cols = _on_motors(term.columns(rd, best.fitted.joint, best.fitted.hyper),
-                              term.motors(rd, best.fitted.joint))
-            raw = cols @ best.fitted.coef
-            low = np.zeros_like(raw) if term.above_band else rd.lowpass(raw)
-            res["low"] = res["low"] - low
-            res["wide"] = res["wide"] - raw
-            for band in res:
-                self._versions[band][term.motors(rd, best.fitted.joint)] += 1
-            self.corrections_["low"] += low
-            self.corrections_["wide"] += raw
+                if best.term.yields:                   # a reference that steps aside for a named term on its motor
+                    best = next((s for s in scored if s.term is not None and not s.term.reference
+                                 and s.fitted.joint == best.fitted.joint and not self._why_rejected(s)), best)
+                best = best.term.resolve(rd, best, scored, lambda s: not self._why_rejected(s),   # one mass, two links
+                                         accepted=self.accepted_ + self.references_)
+                # selected on SELECT: its coefficients are now estimated on FIT + SELECT (hyper-parameter kept); the
+                # report rows stay unseen
+                final = self._evaluate(rd, best.term, best.fitted.joint, res, weights,
+                                       grid=[best.fitted.hyper], coef_rows=("fit_rows", "select_rows"))
+                if final is not None and final.fitted.plausible:
+                    best.fitted, best.holdout_gain, best.rms_after = final.fitted, final.holdout_gain, final.rms_after
+                if getattr(best, "note", ""):
+                    best.fitted.summary += f" ({best.note})"
+                taken.add((best.fitted.kind, best.fitted.joint))
+                (self.references_ if best.term.reference else self.accepted_).append(best)
+                self._order.append(best)
+                # the accepted term becomes part of the model, in both bands
+                term = best.term
+                cols = _on_motors(term.columns(rd, best.fitted.joint, best.fitted.hyper),
+                                  term.motors(rd, best.fitted.joint))
+                raw = cols @ best.fitted.coef
+                low = np.zeros_like(raw) if term.above_band else rd.lowpass(raw)
+                res["low"] = res["low"] - low
+                res["wide"] = res["wide"] - raw
+                for band in res:
+                    self._versions[band][term.motors(rd, best.fitted.joint)] += 1
+                self.corrections_["low"] += low
+                self.corrections_["wide"] += raw
+
+        # the ladder of every term but the last resorts; they read what the findings leave, once those are estimated
+        # together (a last resort never takes a ladder step, nor anything a finding explains)
+        ladder([tk for tk in tasks if not tk[0].last_resort], self.max_terms)
         self._joint_refit(rd, res, weights)
         self._reweighted_estimate(rd, res, weights)
+        last = [tk for tk in tasks if tk[0].last_resort]
+        if last and len(self._order) < self.max_terms:
+            self._fits.clear()                     # the refit moved every finding: no fit of the ladder's is current
+            ladder(last, self.max_terms - len(self._order), "diagnosis, what the findings leave: step")
         self.final_ = {band: {"fit": _rms(r, m_fit), "select": _rms(r, m_sel), "holdout": _rms(r, m_rep)}
                        for band, r in res.items()}
         # arrays of the recording's size
@@ -500,11 +508,22 @@ class MismatchSearch:
             rd.extra.pop(cache, None)
         return self
 
+    def _pick(self, scored: list[Scored]) -> Scored | None:
+        """The ladder's choice from a step's ranking: walk down it to the first candidate that passes every test
+        (each walked candidate's ``rejected`` says why it did not); None when nothing passes."""
+        for s in scored:
+            s.rejected = self._why_rejected(s)
+            if not s.rejected:
+                return s
+        return None
+
     @staticmethod
     def _jointly(term: Term | None) -> bool:
         """A term :meth:`_joint_refit` estimates again: compared in the torque band with the default filtering (its
-        torque there is its filtered columns times its coefficients)."""
-        return (term is not None and term.band == "low" and not term.above_band
+        torque there is its filtered columns times its coefficients); not a last resort, which reads what the others
+        leave and never takes from what they explain (refitted with them, the lag reported on the real kuka_3
+        recording's lwr_3 in bench case 162 took a sixth of the payload found on link 6)."""
+        return (term is not None and term.band == "low" and not term.above_band and not term.last_resort
                 and type(term).columns_low is Term.columns_low)
 
     def _joint_refit(self, rd: ResidualData, res: dict, weights: dict) -> None:

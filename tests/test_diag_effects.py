@@ -229,3 +229,28 @@ def test_base_axis_play_in_a_limit_cycle_is_read_from_the_gear_oscillation(tmp_p
     assert not np.any(res.search.predict(res.rd, "low"))                     # and adds nothing in the torque band
     assert d["holdout_gain"] > 0.5
     assert 0 in res.location["flagged"] and "motor 1 (j1): held-out residual (unfiltered)" in res.location["text"]
+
+
+def test_an_elbow_play_held_on_one_flank_is_reported_as_a_compliance_not_none(tmp_path):
+    """Bench case 501 (scripts/bench_diagnose.py, seed 501: its own trajectory, 500 Hz, a 0.053 rad play in the
+    elbow j3, nothing else; drawn at stop 36): the validation trajectory (select and report rows) never reverses the
+    elbow's torque, so there the play is the link held b/2 behind its gear on one flank; the excitation (fit rows)
+    reverses it about a hundred times. No named reading holds on both: the spring's lag (0.053 rad) is more than a
+    transmission deflects, the flank reading fitted on the reversals reads the play negative, the simulated play
+    fits the reversals and not the flank. Until stop 36 the verdict was ``none`` though the exact play removes 96 %
+    of motor 3's residual; now that lag is reported: unexplained, a compliance of j3 (SoftCompliance, scored after
+    the ladder on what it leaves), which takes most of motor 3's select residual and holds on the report rows."""
+    case, res = _bench_case(501, tmp_path)
+    assert [(e["kind"], e["joints"]) for e in case["effects"]] == [("backlash", [2])]     # the draw is fixed
+    assert case["cycle_hz"] == 500.0
+    assert not res.findings(), res.verdict()
+    un = res.unexplained()
+    assert [(u["joint_index"], u["reference"]) for u in un] == [(2, "compliance")], un
+    assert un[0]["fraction_of_residual"] > 0.5 and un[0]["holdout_gain"] > 0.3
+    assert "lags its gear under its load by more than a transmission deflects" in un[0]["what"]
+    assert res.verdict().startswith("unexplained:") and "j3" in res.verdict()
+    # a last resort: not in the ladder's steps, scored on what is left after them
+    from diagnosis.library import SoftCompliance
+    last = [any(isinstance(s.term, SoftCompliance) for s in r) for r in res.search.rankings_]
+    assert last[-1] and last == sorted(last)            # the ladder's steps first, then the last resort's alone
+    assert all(isinstance(s.term, SoftCompliance) for r, k in zip(res.search.rankings_, last) if k for s in r)
