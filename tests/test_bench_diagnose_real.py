@@ -303,3 +303,28 @@ def test_stop35_the_fit_gain_floor_keeps_the_right_names_and_drops_false_ones():
     text = " ".join(_readme_real_section().split())
     assert ("**Stop 35: the three sets diagnosed again with the fit-gain floor: the same right names (45, 39 and 29), "
             "clean as before, false names 7, 7 and 7**; stop 34's code, run beside it, gives 9, 7 and 8") in text
+
+
+def test_stop36_the_real_sets_name_what_stop_35s_final_code_names():
+    """Stop 36: the three real sets diagnosed with this release name what stop 35's rows name except cases 23 and 128,
+    where stop 35's final code (its rows were made before its second rule) names a torque offset on lwr_3 beside a
+    concealed asymmetry: 45, 39 and 29 right, clean as before, false names 8, 7 and 8. The README says so."""
+    sets = {"real": range(0, 60), "real-fresh": range(60, 120), "real-new": range(120, 180)}
+    got = {}
+    for name, seeds in sets.items():
+        load = lambda tag: json.loads((ROOT / "docs" / "bench" / f"diagnose-bench-{name}-2026-11-27-{tag}.json")
+                                      .read_text())["rows"]
+        new, old = load("stop36"), load("stop35")
+        assert [r["seed"] for r in new] == [r["seed"] for r in old] == list(seeds)
+        sn, so = bench_real.sim_bench.score(new), bench_real.sim_bench.score(old)
+        names = lambda r: sorted((f["kind"], f["joint"]) for f in r["named"])
+        moved = {r["seed"]: names(r) for r, q in zip(new, old) if names(r) != names(q)}
+        for seed in moved:
+            r = next(x for x in new if x["seed"] == seed)
+            assert [(e["kind"], e["joints"]) for e in r["effects"]] == [("asymmetric_friction", [3])]
+        got[name] = (sn["effects_found"], sn["clean_none"] == so["clean_none"], sum(sn["false_names"].values()), moved)
+    assert got == {"real": (45, True, 8, {23: [("torque_offset", 3)]}), "real-fresh": (39, True, 7, {}),
+                   "real-new": (29, True, 8, {128: [("torque_offset", 3)]})}
+    text = " ".join(_readme_real_section().split())
+    assert ("**Stop 36: those stop-35 rows were not its final code's, and the false names with it are 8, 7 and 8.**"
+            in text)
