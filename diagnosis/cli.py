@@ -113,7 +113,7 @@ def main(argv=None) -> int:
               f"{ {k: v for k, v in f['effect'].items() if k != 'kind'} }")
     for u in d["unexplained"]:
         print(f"  unexplained              {u['joint']:<12} {u['fraction_of_residual']:.0%} of its select residual, "
-              f"largest {u['regime']}, mostly {u['frequency_band']}")
+              f"largest {u['regime']}, mostly {u['frequency_band']} (what takes it: {u['reference']})")
     print(f"report gain of {gain_scope(d)} together (rows the search never saw): {d['holdout_gain']:.1%}")
     for f in unconfirmed(d):
         print(f"not confirmed on the report rows: {f['kind']} on {f['joint']} (its report gain "
