@@ -397,12 +397,8 @@ class TorqueOffset(Term):
         (motor 2) and 0.002-0.004 N*m (motor 3), named as torque offsets in 9 cases (20, 49, 117, 120, 135, 147,
         199, 282, 318; on the clean cases none). Each of those motors' gears swung at the cycle's frequency (within
         2 %)."""
-        found = BacklashRattle.swinging_with(rd, j, accepted)
-        if found is None:
-            return ""
-        a, f_j, f_a = found
-        return (f"its gear swings at {f_j:.3g} Hz, in the limit cycle of the {a.fitted.kind} found on "
-                f"{rd.joints[a.fitted.joint]} ({f_a:.3g} Hz): a nonlinear oscillation's mean torque")
+        where = BacklashRattle.in_cycle(rd, j, accepted)
+        return f"{where}: a nonlinear oscillation's mean torque" if where else ""
 
 
 class ModelDataOffset(TorqueOffset):
@@ -1357,6 +1353,14 @@ class JointElasticity(Term):
         col[:, :, 0] = -(joint_side @ rd.K)       # motor side: K^T tau_joint, row-wise
         return col
 
+    @staticmethod
+    def lag(rd, j: int, compliance: float) -> float:
+        """rad: how far the link lags its gear under its own load at this compliance (rad/(N*m)): the 99th
+        percentile of joint j's rigid torque over its usable rows times it; 0 for a compliance that is not
+        positive."""
+        tau = np.abs(np.nan_to_num(rd.tau_rigid_joint[:, j]))[rd.mask[:, j]]
+        return float(np.percentile(tau, 99)) * float(compliance) if len(tau) and compliance > 0 else 0.0
+
     def effect(self, rd, j, h, coef, std):
         k = 1.0 / coef[0] if coef[0] > 0 else float("inf")
         # the first-order (quasi-static) lag is exact well below the link's resonance on that spring,
@@ -1369,8 +1373,7 @@ class JointElasticity(Term):
         f_res = float(np.sqrt(k / m_typ) / (2 * np.pi)) if np.isfinite(k) else float("inf")
         ok = coef[0] > 3 * std[0]
         why = "" if ok else "compliance not positive/significant"
-        tau = np.abs(np.nan_to_num(rd.tau_rigid_joint[:, j]))[rd.mask[:, j]]
-        deflection = float(np.percentile(tau, 99)) * coef[0] if len(tau) and coef[0] > 0 else 0.0
+        deflection = self.lag(rd, j, coef[0])
         if ok and deflection > self.MAX_DEFLECTION:
             ok, why = False, (f"the link would lag its gear by {deflection:.2g} rad under its own load (99th "
                               f"percentile): more than a transmission deflects ({self.MAX_DEFLECTION:g} rad)")
@@ -1432,18 +1435,13 @@ class SoftCompliance(JointElasticity):
         # a gear swinging in the limit cycle of a rattle named on another joint lags with that cycle (bench cases
         # 456, 462, 513: an elbow read as compliant beside the 250 Hz shoulder's play, as its torque offset is the
         # cycle's mean, TorqueOffset._in_cycle)
-        found = BacklashRattle.swinging_with(rd, j, accepted, other_joints=True)
-        if found is None:
-            return ""
-        a, f_j, f_a = found
-        return (f"its gear swings at {f_j:.3g} Hz, in the limit cycle of the {a.fitted.kind} found on "
-                f"{rd.joints[a.fitted.joint]} ({f_a:.3g} Hz): that cycle's lag, not a compliance of its own")
+        where = BacklashRattle.in_cycle(rd, j, accepted, other_joints=True)
+        return f"{where}: that cycle's lag, not a compliance of its own" if where else ""
 
     def effect(self, rd, j, h, coef, std):
         eff, summary, ok, why = super().effect(rd, j, h, coef, std)
         significant = coef[0] > 3 * std[0]
-        tau = np.abs(np.nan_to_num(rd.tau_rigid_joint[:, j]))[rd.mask[:, j]]
-        deflection = float(np.percentile(tau, 99)) * coef[0] if len(tau) and coef[0] > 0 else 0.0
+        deflection = self.lag(rd, j, coef[0])
         lo, hi = JointElasticity.MAX_DEFLECTION, LoadedElasticity.MAX_DEFLECTION
         ok = bool(significant and lo < deflection <= hi)
         why = ("" if ok else "compliance not positive/significant" if not significant else
@@ -1774,6 +1772,19 @@ class BacklashRattle(Term):
             if np.isfinite(f_a) and abs(f_j - f_a) <= cls.SAME_CYCLE * f_a:
                 return a, f_j, f_a
         return None
+
+    @classmethod
+    def in_cycle(cls, rd, j, accepted, other_joints: bool = False) -> str:
+        """Where joint j's gear swings in the limit cycle of a rattle in ``accepted`` (:meth:`swinging_with`), as
+        the reasons that demote a reading there say it ("its gear swings at ... in the limit cycle of the ... found
+        on ..."); empty where it does not. :meth:`TorqueOffset._in_cycle` and :meth:`SoftCompliance.already_found`
+        end it with why."""
+        found = cls.swinging_with(rd, j, accepted, other_joints=other_joints)
+        if found is None:
+            return ""
+        a, f_j, f_a = found
+        return (f"its gear swings at {f_j:.3g} Hz, in the limit cycle of the {a.fitted.kind} found on "
+                f"{rd.joints[a.fitted.joint]} ({f_a:.3g} Hz)")
 
     #: own-motor select gain of the first-order spring (:class:`JointElasticity`, torque band) on a gravity-loaded
     #: rattling joint at and above which the rattle is read as a spring (:meth:`resolve`)

@@ -520,10 +520,8 @@ class MismatchSearch:
     @staticmethod
     def _jointly(term: Term | None) -> bool:
         """A term :meth:`_joint_refit` estimates again: compared in the torque band with the default filtering (its
-        torque there is its filtered columns times its coefficients); not a last resort, which reads what the others
-        leave and never takes from what they explain (refitted with them, the lag reported on the real kuka_3
-        recording's lwr_3 in bench case 162 took a sixth of the payload found on link 6)."""
-        return (term is not None and term.band == "low" and not term.above_band and not term.last_resort
+        torque there is its filtered columns times its coefficients)."""
+        return (term is not None and term.band == "low" and not term.above_band
                 and type(term).columns_low is Term.columns_low)
 
     def _joint_refit(self, rd: ResidualData, res: dict, weights: dict) -> None:

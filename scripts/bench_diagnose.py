@@ -349,9 +349,10 @@ def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bo
               "report_gain": f["holdout_gain"], "select_gain": f["select_gain"], "fit_gain": f["fit_gain"],
               "select_gain_all": f["select_gain_all"], "select_gain_capped": f["select_gain_capped"],
               "hyper": f["hyper"]} for f in res.findings()]
+    unexplained = res.unexplained()
     row = {"seed": case["seed"], "case": case, "effects": case["effects"], "cycle_hz": case.get("cycle_hz") / every,
-           "named": named, "unexplained": [u["joint_index"] for u in res.unexplained()],
-           "unexplained_references": [u["reference"] for u in res.unexplained()], "visibility": vis,
+           "named": named, "unexplained": [u["joint_index"] for u in unexplained],
+           "unexplained_references": [u["reference"] for u in unexplained], "visibility": vis,
            "sim_s": sim_s, "diagnose_s": round(t2 - t1, 1)}
     res_path.write_text(json.dumps(row, default=float))
     if not keep:
