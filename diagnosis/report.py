@@ -139,9 +139,9 @@ def headline(d: dict) -> str:
         return text
     if d["unexplained"]:
         return ("Mismatch, but no named physics: the residual on "
-                + ", ".join(f"{u['joint']} ({u['regime'] or 'every regime'}, mostly {u['frequency_band']})"
-                            for u in d["unexplained"])
-                + " has structure that only a refit of the model's own terms explains (unexplained).")
+                + ", ".join(f"{u['joint']} ({u['regime'] or 'every regime'}, mostly {u['frequency_band']}; what "
+                            f"takes it: {u.get('reference') or 'a refit of the model'})" for u in d["unexplained"])
+                + " has structure that no named effect explains better than these readings (unexplained).")
     return "No mismatch that any candidate term explains on held-out data: the model is complete as far as this " \
            "recording can tell."
 

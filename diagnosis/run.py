@@ -136,9 +136,14 @@ class DiagnosisResult:
             return "the model leaves out: " + "; ".join(f"{f['kind']} on {f['joint']} ({f['summary']})"
                                                        for f in self.findings())
         if self.search.references_:
-            return ("unexplained: the residual has structure on " + ", ".join(dict.fromkeys(   # each joint once
-                self.rd.joints[s.fitted.joint] for s in self.search.references_))
-                + " that no named effect explains better than a refit of the model's own terms: nothing named")
+            # each joint once, with the readings (references) that take its structure: a refit of the model's own
+            # friction, a constant torque, a compliance, ... (Term.unexplained_what says what each stands for)
+            takes = {}
+            for s in self.search.references_:
+                takes.setdefault(self.rd.joints[s.fitted.joint], []).append(s.fitted.kind)
+            return ("unexplained: the residual has structure on "
+                    + ", ".join(f"{j} (what takes it: {', '.join(dict.fromkeys(k))})" for j, k in takes.items())
+                    + " that no named effect explains better: nothing named")
         return "none: no candidate term improves the fit on held-out data enough: nothing named"
 
     def diagnosed_model(self) -> dict:

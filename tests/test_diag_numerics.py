@@ -1225,3 +1225,30 @@ def test_a_compliance_is_not_reported_where_a_spring_or_play_is_named_on_its_joi
     why = SoftCompliance().already_found(rd, scored("compliance", 1), [rattle])
     assert "in the limit cycle of the backlash found on j1" in why
     assert SoftCompliance().already_found(rd, scored("compliance", 2), [rattle]) == ""
+
+
+def test_the_unexplained_verdict_and_headline_say_what_takes_the_structure():
+    """Stop 37: an ``unexplained`` verdict names, per joint, the reference readings that take its structure (a refit
+    of the model's friction, a compliance, a constant torque), not "a refit of the model's own terms" whatever took
+    it; the report's headline says the same from diagnosis.json's ``reference``."""
+    from types import SimpleNamespace
+
+    from diagnosis.report import headline
+    from diagnosis.run import DiagnosisResult
+
+    def ref(kind, j):
+        return SimpleNamespace(fitted=SimpleNamespace(kind=kind, joint=j))
+
+    search = SimpleNamespace(accepted_=[], references_=[ref("friction_refit", 0), ref("compliance", 2),
+                                                        ref("torque_offset", 0)])
+    res = DiagnosisResult(model=None, log_path=None, rd=SimpleNamespace(joints=["j1", "j2", "j3"]), search=search,
+                          location={})
+    v = res.verdict()
+    assert v.startswith("unexplained: ")
+    assert "j1 (what takes it: friction_refit, torque_offset)" in v and "j3 (what takes it: compliance)" in v
+    assert "refit of the model's own terms" not in v and v.endswith("nothing named")
+    d = {"findings": [], "unexplained": [{"joint": "j3", "regime": None, "frequency_band": "0.5-2 Hz",
+                                          "reference": "compliance"}]}
+    text = headline(d)
+    assert "j3 (every regime, mostly 0.5-2 Hz; what takes it: compliance)" in text
+    assert "refit of the model's own terms" not in text
