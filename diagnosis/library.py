@@ -618,6 +618,10 @@ class Cogging(Term):
                 yield h, XT[i].T
 
     AGREE = 0.5         # the two directions' ripples (phasors) may differ by at most this share of their mean
+    # (stop 37 measured a looser rule: phases within 0.6 rad and amplitudes within 2:1, the loop's lag rotating the
+    # two directions apart. It accepted the bench's refused true ripples (cases 377, 431 at 0.39-0.49 rad, 1.24-1.46:1)
+    # but as many readings on the real KUKA's lwr_4 at 18 per revolution, in 15 of the real bench's 180 cases with no
+    # ripple concealed there: 0.45-0.57 rad, 1.39-1.60:1, the same region. Not kept; docs/diagnosis.md)
 
     def effect(self, rd, j, h, coef, std):
         z_fwd, z_bwd = complex(coef[0], coef[1]), complex(coef[2], coef[3])
@@ -1901,6 +1905,13 @@ class ElasticRattle(BacklashRattle):
     kind = "joint_elasticity"
     extends = ()
     hyper_name = "gear oscillation above the torque band (link on a spring)"
+    # rad joint side, peak to peak: the swing a free link's spring is read from. Lower than a play's (MIN_SWING):
+    # here the share missed, significantly above a free link's 1, is itself the sign of a spring (a play's or a
+    # ripple's reads 1 or less). Bench case 139 (a 2780 N*m/rad base axis at 500 Hz): the gear swings 0.78 mrad at
+    # 40 Hz, the motors miss 1.106 +- 0.002 of the link's torque for it, 97 % of the motor's select residual, and
+    # the verdict was ``none``. The bench's other swings under 2 mrad above twice the band (0.55-0.99 mrad, cases
+    # 377, 384, 484, 500, 525) are on links gravity holds or read a share of 1.01 or less
+    MIN_SWING = 0.0005
     step_caches = ("rattle_columns", "elastic_rattle_weights")
 
     def stiffness(self, rd, j, alpha: float) -> float:

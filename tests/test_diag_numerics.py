@@ -329,8 +329,9 @@ def test_one_limit_cycle_is_one_play():
     assert term.already_found(rd, scored(1), []) == ""
 
 
-def _rattling_link(k, M=(0.3, 0.8), gravity=0.0, fs=250.0, f_osc=26.0, seconds=20.0):
-    """One joint whose gear (prescribed: a slow motion plus the loop's oscillation at f_osc, 5 mrad) carries a link
+def _rattling_link(k, M=(0.3, 0.8), gravity=0.0, fs=250.0, f_osc=26.0, seconds=20.0, swing=0.005):
+    """One joint whose gear (prescribed: a slow motion plus the loop's oscillation at f_osc, ``swing`` rad peak to
+    peak, 5 mrad unless told) carries a link
     of inertia M(t) (varying between the two values, as the pose changes it) on a spring k (light damping), solved
     independently (scipy's solve_ivp); k = 0 is a free link. Returns the fake ResidualData the rattle terms read and
     the wide-band residual: the spring's torque minus the rigid model's M q_gear_dd."""
@@ -338,7 +339,7 @@ def _rattling_link(k, M=(0.3, 0.8), gravity=0.0, fs=250.0, f_osc=26.0, seconds=2
 
     t = np.arange(0, seconds, 1 / fs)
     w = 2 * np.pi * f_osc
-    a_slow, w_slow, a_osc = 0.4, 0.5, 0.0025
+    a_slow, w_slow, a_osc = 0.4, 0.5, swing / 2
     Mt = lambda tt: M[0] + (M[1] - M[0]) * (0.5 + 0.5 * np.sin(0.31 * tt))
     x_g = lambda tt: a_slow * np.sin(w_slow * tt) + a_osc * np.sin(w * tt)
     v_g = lambda tt: a_slow * w_slow * np.cos(w_slow * tt) + a_osc * w * np.cos(w * tt)
@@ -400,6 +401,34 @@ def test_a_spring_behind_a_rattling_gear_is_named_elastic_with_its_stiffness(k):
     coef, std = fitted(rd_held, residual_held)
     _, _, ok_held, why_held = ElasticRattle().effect(rd_held, 0, None, coef, std)
     assert not ok_held and "gravity holds this link" in why_held
+
+
+def test_a_free_links_spring_is_read_from_a_swing_under_a_plays_floor():
+    """Stop 37: ElasticRattle reads a free link's spring from a gear swing of 0.5 mrad up (its own MIN_SWING), under
+    the 2 mrad a play needs (BacklashRattle.MIN_SWING): the share missed, significantly above a free link's 1, is
+    itself the sign of the spring. Bench case 139 (a 2780 N*m/rad base axis at 500 Hz) swung 0.78 mrad at 40 Hz and
+    was answered ``none``. Here the same link on an independent solution: named at 0.8 mrad with its stiffness within
+    10 %, while the play's reading refuses the swing; at 0.3 mrad neither reads it."""
+    from diagnosis.library import BacklashRattle, ElasticRattle
+
+    assert ElasticRattle.MIN_SWING < BacklashRattle.MIN_SWING
+    k = 2500.0
+    rd, residual = _rattling_link(k, fs=500.0, f_osc=40.0, swing=0.0008)
+    col = BacklashRattle().columns(rd, 0, None)[:, 0, 0]
+    skip = slice(int(2 * rd.fs), None)
+    coef = np.array([float(col[skip] @ residual[skip] / (col[skip] @ col[skip]))])
+    std = np.array([1e-3])
+    width, f_osc = BacklashRattle.oscillation(rd, 0)
+    assert ElasticRattle.MIN_SWING < width < BacklashRattle.MIN_SWING and f_osc == pytest.approx(40.0, abs=1.0)
+    effect, summary, ok, why = ElasticRattle().effect(rd, 0, None, coef, std)
+    assert ok, why
+    assert effect["stiffness"] == pytest.approx(k, rel=0.10)
+    _, _, ok_play, why_play = BacklashRattle().effect(rd, 0, None, coef, std)
+    assert not ok_play
+
+    rd_small, residual_small = _rattling_link(k, fs=500.0, f_osc=40.0, swing=0.0003)
+    _, _, ok_small, why_small = ElasticRattle().effect(rd_small, 0, None, coef, std)
+    assert not ok_small and "does not oscillate above the band" in why_small
 
 
 def test_a_play_on_a_stiff_flank_only_where_the_free_compliance_is_below_zero_and_nesting_reads_one_band():
