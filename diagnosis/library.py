@@ -619,9 +619,10 @@ class Cogging(Term):
 
     AGREE = 0.5         # the two directions' ripples (phasors) may differ by at most this share of their mean
     # (stop 37 measured a looser rule: phases within 0.6 rad and amplitudes within 2:1, the loop's lag rotating the
-    # two directions apart. It accepted the bench's refused true ripples (cases 377, 431 at 0.39-0.49 rad, 1.24-1.46:1)
-    # but as many readings on the real KUKA's lwr_4 at 18 per revolution, in 15 of the real bench's 180 cases with no
-    # ripple concealed there: 0.45-0.57 rad, 1.39-1.60:1, the same region. Not kept; docs/diagnosis.md)
+    # two directions apart. Of the ripples it would let through, two are the bench's misses (cases 377 and 431 at
+    # 0.39-0.49 rad, 1.24-1.46:1). But readings on the real KUKA's lwr_4 at 18 per revolution pass it and the 12 %
+    # floor in 13 of the real bench's 180 cases with no ripple concealed there (0.45-0.57 rad, 1.39-1.60:1: the
+    # same region), on kuka_3's clean base recording. Not kept; docs/diagnosis.md, stop 37)
 
     def effect(self, rd, j, h, coef, std):
         z_fwd, z_bwd = complex(coef[0], coef[1]), complex(coef[2], coef[3])

@@ -14,6 +14,7 @@ from fixtures_id_sim import REAL
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
+DOC = (ROOT / "docs" / "diagnosis.md").read_text()
 ROWS = ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-27-stop35.json"
 ROWS32 = ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-27-stop32.json"
 
@@ -158,3 +159,16 @@ def test_stop36_the_clean_real_conditions_read_as_at_stop_35():
     assert all(not r["named"] for r in new["rows"] if r["own_recording"])
     text = " ".join(README.split())
     assert "the 28 clean real conditions and the 9 payload rows read as stop 35's" in text
+
+
+def test_stop37_the_clean_real_conditions_read_as_at_stop_36():
+    """Stop 37 (a free link's spring read from a swing under a play's floor): the 28 clean real conditions and the 9
+    payload rows, diagnosed again, read exactly as stop 36's rows."""
+    new = json.loads((ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-28-stop37.json").read_text())
+    old = json.loads((ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-27-stop36.json").read_text())
+    assert [r["name"] for r in new["rows"]] == [r["name"] for r in old["rows"]]
+    for a, b in zip(new["rows"], old["rows"]):
+        assert (a["named"], a["unexplained"]) == (b["named"], b["unexplained"]), a["name"]
+    assert new["payload_rows"] == old["payload_rows"] and new["summary"] == old["summary"]
+    text = " ".join(DOC.split())
+    assert "28 clean real conditions and the 9 payload rows read exactly as stop 36's" in text
