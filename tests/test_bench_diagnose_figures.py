@@ -2087,3 +2087,23 @@ def test_stop37_a_free_links_spring_under_a_plays_swing_floor_is_named_and_nothi
     assert "in sample **241 of 293 (82 %)**, clean 37 of 38, 18 false names" in readme
     doc = " ".join(DOC.split())
     assert "**Only case 139 changes in all 380 cases**" in doc
+
+
+def test_stop37_fresh_cases_540_579_read_once_with_this_release():
+    """Cases 540-579, drawn, recorded and diagnosed once with stop 37's code: 34 of 43, clean 5 of 5, 6 false names
+    (all plays), 32 of 35 visible; springs 2 of 10, five named plays on their own joint; the README says so."""
+    rows, s = _scored("fresh41-2026-11-28-stop37")
+    assert [r["seed"] for r in rows] == list(range(540, 580))
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == (34, 43, 5, 5, 6)
+    assert (s["visible_found"], s["visible"]) == (32, 35)
+    assert s["false_names"]["backlash"] == 6
+    springs = [(r["seed"], e["joints"][0]) for r in rows for e in r["effects"] if e["kind"] == "joint_elasticity"]
+    assert len(springs) == 10
+    named = {r["seed"]: _names(r) for r in rows}
+    assert sum(("joint_elasticity", j) in named[c] for c, j in springs) == 2
+    assert sorted(c for c, j in springs if ("backlash", j) in named[c]) == [550, 553, 559, 568, 571]
+    readme = " ".join(README.split())
+    assert ("them before): 34 of 43 (79 %), clean 5 of 5, 6 false names; 32 of 35 visible effects (91 %).**"
+            in readme)
+    assert "**Springs 2 of 10**: five named plays on their own joint" in readme
+    assert "79 % on 540-579 with clean 5 of 5" in readme
