@@ -70,11 +70,19 @@ SIZED_FROM = 56
 #: kinds (cases 0-95 are unchanged)
 HARD_FROM = 96
 HARD_KINDS = ("backlash", "joint_elasticity", "cogging")
+#: cases from here on draw a play's contact stiffness (log-uniform over CONTACT_STIFFNESS, N*m/rad joint side)
+#: instead of the one 3000 N*m/rad every earlier play has (cases 0-579 are unchanged). The springs are drawn over
+#: 800-3000 N*m/rad: with one contact stiffness inside that range, a rule telling a play from a spring by how the
+#: link follows the gear would be a rule on that one number (stop 37: the 500 Hz shoulder plays miss 1.16-1.20 of
+#: the link's torque in their limit cycle, the springs 1.02-1.17, and no bound was drawn from it)
+CONTACT_FROM = 580
+CONTACT_STIFFNESS = (2000.0, 20000.0)
 MEAN_CURRENT_SQUARED = (0.354, 5.25, 1.55, 0.153, 0.120, 0.093)
 MEAN_FRICTION_POWER = (2.21, 1.19, 0.600, 0.354, 0.399, 0.319)
 
 
-def draw_effect(rng: np.random.Generator, kind: str, n: int, sized: bool = False, fine: bool = False) -> dict:
+def draw_effect(rng: np.random.Generator, kind: str, n: int, sized: bool = False, fine: bool = False,
+                contact: bool = False) -> dict:
     """One effect of ``kind`` at a random joint with a random magnitude (ranges: docs/diagnosis.md). ``sized``
     (cases from SIZED_FROM on): a thermal drift raises its motor's friction by 20-60 % at steady state (the
     independent simulator's raised B by 50-90 %), heated by I^2 or by the friction power."""
@@ -112,8 +120,12 @@ def draw_effect(rng: np.random.Generator, kind: str, n: int, sized: bool = False
         return {"kind": kind, "joints": [int(rng.integers(0, 3))], "stiffness": float(rng.uniform(800, 3000)),
                 "damping": 3.0}
     if kind == "backlash":
-        return {"kind": kind, "joints": [int(rng.integers(0, 3))], "width": float(rng.uniform(0.02, 0.06)),
-                "stiffness": 3000.0, "damping": 3.0}
+        e = {"kind": kind, "joints": [int(rng.integers(0, 3))], "width": float(rng.uniform(0.02, 0.06)),
+             "stiffness": 3000.0, "damping": 3.0}
+        if contact:               # ``contact`` (cases from CONTACT_FROM on): the contact's stiffness drawn too
+            lo, hi = CONTACT_STIFFNESS
+            e["stiffness"] = float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+        return e
     if kind == "coupling":      # joint j also turned by a neighbour i (any adjacent pair), |c| 0.04-0.12, either sign
         j = int(rng.integers(0, n))
         i = j + 1 if j == 0 else j - 1 if j == n - 1 else j + int(rng.choice([-1, 1]))
@@ -148,7 +160,7 @@ def draw_case(seed: int, n: int, base_trials: dict) -> dict:
     for kind in kinds:
         if len(effects) == count:
             break
-        e = draw_effect(rng, kind, n, sized=seed >= SIZED_FROM, fine=seed >= HARD_FROM)
+        e = draw_effect(rng, kind, n, sized=seed >= SIZED_FROM, fine=seed >= HARD_FROM, contact=seed >= CONTACT_FROM)
         if e["joints"][0] in used:
             continue
         used.add(e["joints"][0])

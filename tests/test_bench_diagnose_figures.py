@@ -2107,3 +2107,31 @@ def test_stop37_fresh_cases_540_579_read_once_with_this_release():
             in readme)
     assert "**Springs 2 of 10**: five named plays on their own joint" in readme
     assert "79 % on 540-579 with clean 5 of 5" in readme
+
+
+def test_from_case_580_a_plays_contact_stiffness_is_drawn_and_earlier_cases_are_unchanged():
+    """bench_diagnose.CONTACT_FROM: cases 0-579 draw what their committed rows hold (every play's contact at 3000
+    N*m/rad); from case 580 on a play's contact stiffness is drawn log-uniform over CONTACT_STIFFNESS, so a rule
+    telling a play from a spring cannot rest on one contact stiffness."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_diagnose
+    from js2io.trials import load_trials_config
+    from js2spec.robot import load_robot
+
+    robot = load_robot("js2")
+    base = load_trials_config(robot.trials_path or bench_diagnose._default_trials())
+    n = robot.drives.n
+    rows, _ = _scored("fresh41-2026-11-28-stop37")
+    for r in rows:                                    # the committed draws of 540-579, made before CONTACT_FROM
+        drawn = json.loads(json.dumps(bench_diagnose.draw_case(r["seed"], n, base)["effects"]))
+        assert len(drawn) == len(r["effects"])
+        for d, e in zip(drawn, r["effects"]):
+            assert d == {k: e[k] for k in d}, r["seed"]
+    plays = [e for r in rows for e in r["effects"] if e["kind"] == "backlash"]
+    assert plays and all(e["stiffness"] == 3000.0 for e in plays)
+    lo, hi = bench_diagnose.CONTACT_STIFFNESS
+    new = [e for seed in range(bench_diagnose.CONTACT_FROM, bench_diagnose.CONTACT_FROM + 80)
+           for e in bench_diagnose.draw_case(seed, n, base)["effects"] if e["kind"] == "backlash"]
+    assert len(new) >= 10
+    k = [e["stiffness"] for e in new]
+    assert all(lo <= x <= hi for x in k) and len(set(k)) == len(k) and min(k) < 3000.0 < max(k)
