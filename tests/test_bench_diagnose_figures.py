@@ -2135,3 +2135,28 @@ def test_from_case_580_a_plays_contact_stiffness_is_drawn_and_earlier_cases_are_
     assert len(new) >= 10
     k = [e["stiffness"] for e in new]
     assert all(lo <= x <= hi for x in k) and len(set(k)) == len(k) and min(k) < 3000.0 < max(k)
+
+
+def test_stop37_fresh_cases_580_619_with_drawn_contact_stiffness():
+    """Cases 580-619 (plays with a drawn contact stiffness), recorded and diagnosed once with stop 37's final code:
+    39 of 47, clean 5 of 5, 7 false names, 35 of 40 visible; plays 6 of 10, the two stiffest base-axis contacts
+    named springs; the README and docs say so."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_diagnose
+
+    rows, s = _scored("fresh42-2026-11-28-stop37")
+    assert [r["seed"] for r in rows] == list(range(580, 620))
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == (39, 47, 5, 5, 7)
+    assert (s["visible_found"], s["visible"]) == (35, 40)
+    plays = [(r, e) for r in rows for e in r["effects"] if e["kind"] == "backlash"]
+    lo, hi = bench_diagnose.CONTACT_STIFFNESS
+    assert len(plays) == 10 and all(lo <= e["stiffness"] <= hi for _, e in plays)
+    assert sum(("backlash", e["joints"][0]) in _names(r) for r, e in plays) == 6
+    as_spring = sorted(r["seed"] for r, e in plays if ("joint_elasticity", e["joints"][0]) in _names(r))
+    assert as_spring == [615, 618]
+    assert all(e["stiffness"] > 14000 and e["joints"] == [0] for r, e in plays if r["seed"] in as_spring)
+    readme = " ".join(README.split())
+    assert "every earlier play has 3000): 39 of 47 (83 %), clean 5 of 5, 7 false names; 35 of 40 visible effects" \
+        in readme
+    assert "83 % on 580-619 with clean 5 of 5" in readme
+    assert "**39 of 47 (83 %), clean 5 of 5, 7 false names; 35 of 40 visible (88 %)**" in " ".join(DOC.split())
