@@ -2077,6 +2077,7 @@ def test_stop37_a_free_links_spring_under_a_plays_swing_floor_is_named_and_nothi
     assert (truth["kind"], truth["joints"]) == ("joint_elasticity", [0])
     assert _names(r139) == [("joint_elasticity", 0)]
     assert r139["named"][0]["effect"]["stiffness"] == pytest.approx(truth["stiffness"], rel=0.15)
+    k139 = r139["named"][0]["effect"]["stiffness"]
     want = {"sim": (241, 293, 37, 38, 18), "fresh34": (29, 39, 11, 11, 3), "fresh38": (29, 41, 7, 7, 8),
             "fresh40": (32, 37, 11, 11, 3)}
     for name, counts in want.items():
@@ -2084,6 +2085,7 @@ def test_stop37_a_free_links_spring_under_a_plays_swing_floor_is_named_and_nothi
         assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == counts
     readme = " ".join(README.split())
     assert "**all 380 cases diagnosed again: only case 139 changes**" in readme
+    assert f"its spring named at {round(k139, -1):.0f} N*m/rad" in readme
     assert "in sample **241 of 293 (82 %)**, clean 37 of 38, 18 false names" in readme
     doc = " ".join(DOC.split())
     assert "**Only case 139 changes in all 380 cases**" in doc
