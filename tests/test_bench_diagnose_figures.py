@@ -2156,7 +2156,9 @@ def test_stop37_fresh_cases_580_619_with_drawn_contact_stiffness():
     assert sum(("backlash", e["joints"][0]) in _names(r) for r, e in plays) == 6
     as_spring = sorted(r["seed"] for r, e in plays if ("joint_elasticity", e["joints"][0]) in _names(r))
     assert as_spring == [615, 618]
-    assert all(e["stiffness"] > 14000 and e["joints"] == [0] for r, e in plays if r["seed"] in as_spring)
+    stiff = sorted(e["stiffness"] for r, e in plays if r["seed"] in as_spring)
+    assert all(e["joints"] == [0] for r, e in plays if r["seed"] in as_spring)
+    assert f"(615, 618: {round(stiff[0], -2):.0f}-{round(stiff[-1], -2):.0f} N*m/rad)" in " ".join(README.split())
     readme = " ".join(README.split())
     assert "every earlier play has 3000): 39 of 47 (83 %), clean 5 of 5, 7 false names; 35 of 40 visible effects" \
         in readme
