@@ -85,7 +85,8 @@ def draw_effect(rng: np.random.Generator, kind: str, n: int, sized: bool = False
                 contact: bool = False) -> dict:
     """One effect of ``kind`` at a random joint with a random magnitude (ranges: docs/diagnosis.md). ``sized``
     (cases from SIZED_FROM on): a thermal drift raises its motor's friction by 20-60 % at steady state (the
-    independent simulator's raised B by 50-90 %), heated by I^2 or by the friction power."""
+    independent simulator's raised B by 50-90 %), heated by I^2 or by the friction power. ``contact`` (cases from
+    CONTACT_FROM on): a play's contact stiffness is drawn (CONTACT_STIFFNESS), not 3000 N*m/rad."""
     if kind == "thermal_drift" and sized:
         j = int(rng.integers(0, n))
         change, alpha = float(rng.uniform(0.2, 0.6)), float(rng.uniform(0.01, 0.03))
