@@ -22,33 +22,18 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-
-def _plain(x):
-    """numpy scalars and arrays (and containers of them) as JSON's types."""
-    if isinstance(x, np.floating):
-        return float(x)
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if isinstance(x, dict):
-        return {k: _plain(v) for k, v in x.items()}
-    return x
+from diagnosis.report import _jsonable  # noqa: E402  (numpy to JSON's types, NaN as null: diagnosis.json's)
 
 
 def reading(s) -> dict:
     """One scored candidate (``search.Scored``) as a row."""
     f = s.fitted
-    return {"term": type(s.term).__name__, "kind": f.kind, "joint": f.joint, "hyper": _plain(f.hyper),
-            "coef": _plain(f.coef), "std": _plain(f.coef_std), "own": s.select_gain_own, "sel": s.select_gain,
+    return {"term": type(s.term).__name__, "kind": f.kind, "joint": f.joint, "hyper": _jsonable(f.hyper),
+            "coef": _jsonable(f.coef), "std": _jsonable(f.coef_std), "own": s.select_gain_own, "sel": s.select_gain,
             "all": s.select_gain_all, "cap": s.select_gain_capped, "fit": s.fit_gain, "hold": s.holdout_gain,
-            "ok": bool(f.plausible), "why": f.why_not, "rej": s.rejected, "effect": _plain(f.effect)}
+            "ok": bool(f.plausible), "why": f.why_not, "rej": s.rejected, "effect": _jsonable(f.effect)}
 
 
 def rankings(model: Path, recording: Path) -> dict:
@@ -58,7 +43,7 @@ def rankings(model: Path, recording: Path) -> dict:
     with contextlib.redirect_stdout(io.StringIO()):
         d = diagnose(model, recording)
     s = d.search
-    return _plain({"recording": str(recording), "verdict": d.verdict(),
+    return _jsonable({"recording": str(recording), "verdict": d.verdict(),
                    "accepted": [reading(a) for a in s.accepted_], "references": [reading(a) for a in s.references_],
                    "rankings": [[reading(x) for x in rank] for rank in s.rankings_]})
 
