@@ -62,14 +62,23 @@ def main(argv=None) -> int:
     if missing:
         print(f"diagnose_rankings: error: not found: {', '.join(missing)}", file=sys.stderr)
         return 2
+    from js2spec.errors import Js2Error
+
     a.out.mkdir(parents=True, exist_ok=True)
+    failed = 0
     for k, rec in enumerate(a.recordings, 1):
         path = a.out / f"{rec.stem}.json"
         if path.is_file():
             continue
-        path.write_text(json.dumps(rankings(a.model, rec)))
+        try:
+            dump = rankings(a.model, rec)
+        except Js2Error as exc:          # a recording (or model) js2 cannot read: said, and the others go on
+            print(f"diagnose_rankings: error: {exc}", file=sys.stderr, flush=True)
+            failed += 1
+            continue
+        path.write_text(json.dumps(dump))
         print(f"[{k}/{len(a.recordings)}] {rec.name} -> {path}", file=sys.stderr, flush=True)
-    return 0
+    return 2 if failed else 0
 
 
 if __name__ == "__main__":

@@ -33,3 +33,10 @@ def test_a_missing_model_or_recording_is_one_line(tmp_path, capsys):
     assert diagnose_rankings.main([str(clean_model()), str(tmp_path), str(tmp_path / "none.mcap")]) == 2
     err = capsys.readouterr().err
     assert "not found" in err and "none.mcap" in err and "Traceback" not in err
+    bad = tmp_path / "bad.mcap"                  # a file js2 cannot read: one line, the good one still dumped
+    bad.write_text("not mcap")
+    good = recording("[]")
+    assert diagnose_rankings.main([str(clean_model()), str(tmp_path / "out"), str(bad), str(good)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.mcap" in err and "not an MCAP file" in err and "Traceback" not in err
+    assert not (tmp_path / "out" / "bad.json").exists() and (tmp_path / "out" / f"{Path(good).stem}.json").is_file()
