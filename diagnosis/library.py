@@ -1599,7 +1599,14 @@ class BacklashOnFlank(Term):
     constant explains the same motor as well or better when that is all there is. Read on the fresh clean case 447
     (1000 Hz): a play on a clean wrist taking 14-20 % of its motor's select residual where a constant took 42 %. On
     the 70 simulator cases with a play named by stop 33's code, the 18 true plays read on a flank cut their motor's
-    select residual by 24-99 %, a constant on it by at most 46 % at the same ladder step."""
+    select residual by 24-99 %, a constant on it by at most 46 % at the same ladder step.
+
+    The contact's spring is held to the lag a transmission may have (``JointElasticity.MAX_DEFLECTION``, 0.05 rad
+    under the joint's own load, as the spring alone is; stop 38). On the bench's dumps (every step's candidates of
+    the 460 cases, stop 37's code) the flank readings named right imply 0.0007-0.013 rad; four named on an elbow
+    shaken by its shoulder's 500 Hz limit cycle (a play or a spring there) read contacts of 150-305 N*m/rad,
+    0.085-0.17 rad: the elbow's share of the cycle, not its flank. Three of them were false names (111, 396, 585);
+    the fourth (13) sits on an elbow that does hold a play, read at 0.022 rad for 0.051 and 160 N*m/rad for 3000."""
     kind, extends, own_motor = "backlash", ("joint_elasticity", "torque_offset"), True
     margin = 0.04
     hyper_name = "quasi-static flank"
@@ -1623,6 +1630,11 @@ class BacklashOnFlank(Term):
         # significantly negative compliance is not a contact
         resolved = compliance > 3 * std[1]
         ok = half > 3 * std[0] and compliance > -3 * std[1] and 2 * half < 0.2
+        # the contact's spring is JointElasticity's column: held to the lag a transmission may have under the joint's
+        # own load (JointElasticity.MAX_DEFLECTION, the same 99th-percentile torque)
+        contact_lag = JointElasticity.lag(rd, j, compliance) if resolved else 0.0
+        soft = ok and contact_lag > JointElasticity.MAX_DEFLECTION
+        ok = ok and not soft
         b = 2 * half
         bound = compliance + 3 * float(std[1])
         k = 1.0 / compliance if resolved else 1.0 / bound if bound > 0 else float("inf")
@@ -1634,7 +1646,11 @@ class BacklashOnFlank(Term):
         held = ("; its transmitted torque never reverses in this recording, so the play is held on one flank and "
                 "reads the same as an angle offset of the joint (its encoder's zero) of b/2" if reversals == 0 else
                 f"; the link changes flank at the {reversals} reversals of its transmitted torque")
-        why = ("" if ok else "play not positive/significant or contact compliance negative" if 2 * half < 0.2 else
+        why = ("" if ok else
+               f"the contact would let the link lag its gear by {contact_lag:.2g} rad under its own load (99th "
+               f"percentile), more than a transmission deflects ({JointElasticity.MAX_DEFLECTION:g} rad): not a "
+               "play's flank" if soft else
+               "play not positive/significant or contact compliance negative" if 2 * half < 0.2 else
                f"a play of {b:.3g} rad is not plausible")
         return ({"kind": self.kind, "joints": [j], "width": float(b), "stiffness": float(k), "damping": float(d)},
                 f"joint {rd.joints[j]} has lost motion: backlash about {b:.3g} rad (joint side), the link resting "

@@ -572,7 +572,8 @@ def test_a_play_on_a_stiff_contact_is_named_with_its_stiffness_bounded_from_belo
 
     N, n = 200, 3
     rd = SimpleNamespace(tau_rigid_joint=np.tile([1.0, -1.0], N // 2)[:, None] * np.ones((1, n)),
-                         extra={"M": np.tile(0.5 * np.eye(n), (N, 1, 1))}, joints=["j1", "j2", "j3"])
+                         extra={"M": np.tile(0.5 * np.eye(n), (N, 1, 1))}, joints=["j1", "j2", "j3"],
+                         mask=np.ones((N, n), bool))
     term = BacklashOnFlank()
     eff, summary, ok, why = term.effect(rd, 2, None, np.array([0.027, -4e-5]), np.array([1.6e-4, 4e-5]))
     assert ok and why == "" and eff["width"] == pytest.approx(0.054)
@@ -600,6 +601,33 @@ def test_an_elasticity_that_would_lag_its_link_by_more_than_a_transmission_defle
     eff, _, ok, why = term.effect(rd, 1, None, np.array([1 / 150.0]), np.array([1e-5]))  # 0.13 rad
     assert not ok and "would lag its gear by 0.13 rad" in why and eff["stiffness"] == pytest.approx(150.0)
     assert term.effect(rd, 1, None, np.array([0.049 / 20.0]), np.array([1e-5]))[2]       # just under the ceiling
+
+
+def test_a_flank_reading_whose_contact_lags_more_than_a_transmission_is_not_a_play():
+    """BacklashOnFlank.effect (stop 38): the contact's compliance times the joint's rigid torque (99th percentile,
+    JointElasticity.lag) over JointElasticity.MAX_DEFLECTION is refused with that reason, as the spring alone is. The
+    bench's named plays imply 0.0007-0.013 rad; the four elbow readings in a shoulder's 500 Hz limit cycle
+    0.085-0.17 rad (contacts of 150-305 N*m/rad under a 25 N*m 99th-percentile torque). A contact whose compliance
+    is not resolved (stiff) is not held to it."""
+    from diagnosis.library import BacklashOnFlank, JointElasticity
+
+    N, n = 400, 3
+    tau = np.tile([25.0, -25.0], N // 2)[:, None] * np.ones((1, n))
+    rd = SimpleNamespace(tau_rigid_joint=tau, mask=np.ones((N, n), bool),
+                         extra={"M": np.tile(0.3 * np.eye(n), (N, 1, 1))}, joints=["j1", "j2", "j3"])
+    term = BacklashOnFlank()
+    # 585's elbow: b/2 6.2 mrad, a 150 N*m/rad contact: 25 / 150 = 0.17 rad of lag
+    eff, summary, ok, why = term.effect(rd, 2, None, np.array([0.0062, 1 / 150.0]), np.array([1e-4, 5e-5]))
+    assert not ok and "would let the link lag its gear by 0.17 rad" in why and "not a play's flank" in why
+    assert eff["stiffness"] == pytest.approx(150.0)                  # the reading is still reported as it is
+    # a true elbow play's contact (3300 N*m/rad): 0.0076 rad, named
+    assert term.effect(rd, 2, None, np.array([0.022, 1 / 3300.0]), np.array([1e-4, 5e-6]))[2]
+    # at the bound: 0.049 rad named, 0.051 not
+    assert term.effect(rd, 2, None, np.array([0.022, 0.049 / 25.0]), np.array([1e-4, 1e-6]))[2]
+    assert not term.effect(rd, 2, None, np.array([0.022, 0.051 / 25.0]), np.array([1e-4, 1e-6]))[2]
+    # not resolved (the compliance within 3 std of 0): the data bound the contact from below only: not held to it
+    assert term.effect(rd, 2, None, np.array([0.022, 1e-4]), np.array([1e-4, 1e-4]))[2]
+    assert JointElasticity.lag(rd, 2, 1 / 150.0) == pytest.approx(25.0 / 150.0)
 
 
 def test_an_offset_the_models_own_recording_carries_too_is_reported_not_named():
