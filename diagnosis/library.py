@@ -347,7 +347,7 @@ class TorqueOffset(Term):
     the model identified from that simulator (named in 6 of the first 46 benchmark cases once the prediction was
     filtered once; the floor was half a count until stop 38), and beside an effect the model lacks, the motors
     that effect does not load carry the mean of what it does to them (a limit cycle shaking them through M(q) and
-    their friction, a coupling's torque): 0.8-3.1 counts, named as offsets 9 times in the 540 benchmark cases up to
+    their friction, a coupling's torque): 0.8-3.1 counts, named as offsets 9 times in the 460 benchmark cases up to
     stop 37 (cases 403, 492 twice, 507, 511, 584, 588, 598 twice), none of which draws a torque offset. At 4 counts
     (0.4 % of the rated torque, below what a model of the arm resolves anyway) those are not named; the test
     injections (0.03 N*m: 190 counts) and the larger false ones beside a play (459: 8.8, 390: 13) are untouched.
@@ -460,8 +460,8 @@ class Stribeck(Term):
     delta = 2 (see STRIBECK_SHAPES), f_s - f_c by least squares.
 
     A hump under half a count of the drive's current read-back (RMS over the select rows, ``min_counts``; a
-    :class:`TorqueOffset` asks for 4) is not named: the noise dithers the quantised current so a fit resolves it, but it is the
-    identified model's own bias. A clean 1000 Hz bench case re-recorded with this release's simulator (case 22) had
+    :class:`TorqueOffset` asks for 4) is not named: the noise dithers the quantised current so a fit resolves it,
+    but it is the identified model's own bias. A clean 1000 Hz bench case re-recorded with this release's simulator (case 22) had
     one on j2: 0.2 count, humps of 4e-5 and 8e-5 N*m at v_s 60 rad/s against f_c 0.024 N*m; the benchmark's true
     Stribeck humps are 2.0-6.0 counts."""
     kind, hyper_name, extends = "stribeck", "(velocity, shape)", ("friction_refit", "breakaway_transient")
