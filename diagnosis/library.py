@@ -461,9 +461,9 @@ class Stribeck(Term):
 
     A hump under half a count of the drive's current read-back (RMS over the select rows, ``min_counts``; a
     :class:`TorqueOffset` asks for 4) is not named: the noise dithers the quantised current so a fit resolves it,
-    but it is the identified model's own bias. A clean 1000 Hz bench case re-recorded with this release's simulator (case 22) had
-    one on j2: 0.2 count, humps of 4e-5 and 8e-5 N*m at v_s 60 rad/s against f_c 0.024 N*m; the benchmark's true
-    Stribeck humps are 2.0-6.0 counts."""
+    but it is the identified model's own bias. A clean 1000 Hz bench case re-recorded with this release's simulator
+    (case 22) had one on j2: 0.2 count, humps of 4e-5 and 8e-5 N*m at v_s 60 rad/s against f_c 0.024 N*m; the
+    benchmark's true Stribeck humps are 2.0-6.0 counts."""
     kind, hyper_name, extends = "stribeck", "(velocity, shape)", ("friction_refit", "breakaway_transient")
     min_counts = 0.5
 
