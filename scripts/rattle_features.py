@@ -74,7 +74,7 @@ def features(model, path: Path, j: int) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+    ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("model", type=Path, help="model directory (js2-identify's output) or its model.yaml")
     ap.add_argument("joint", type=int, help="joint index, 0-based (0: the base axis)")
