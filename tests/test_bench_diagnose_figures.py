@@ -2265,3 +2265,19 @@ def test_stop38_a_flank_contact_softer_than_a_transmission_is_no_play():
     readme = " ".join(README.split())
     assert "In sample **240 of 293 (82 %)**, clean 37 of 38, 15 false names" in readme
     assert "**only those four change**" in readme and "**one right name lost**" in readme
+
+
+def test_stop38_fresh_cases_660_699_read_once_with_the_final_code():
+    """Cases 660-699, drawn, recorded and diagnosed once with stop 38's final code: 30 of 41, clean 7 of 7, 10 false
+    names, 27 of 36 visible; five shoulder springs named plays; the README says so, as the weakest fresh set."""
+    rows, s = _scored("fresh44-2026-11-28-stop38")
+    assert [r["seed"] for r in rows] == list(range(660, 700))
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == (30, 41, 7, 7, 10)
+    assert (s["visible_found"], s["visible"]) == (27, 36)
+    springs = [(r["seed"], e["joints"][0]) for r in rows for e in r["effects"] if e["kind"] == "joint_elasticity"]
+    named = {r["seed"]: _names(r) for r in rows}
+    assert (len(springs), sum(("joint_elasticity", j) in named[c] for c, j in springs)) == (13, 8)
+    assert sorted(c for c, j in springs if ("backlash", j) in named[c]) == [664, 670, 673, 685, 688]
+    readme = " ".join(README.split())
+    assert "final code): 30 of 41 (73 %), clean 7 of 7, 10 false names; 27 of 36 visible effects (75 %).**" in readme
+    assert "73 % on 660-699 with clean 7 of 7" in readme
