@@ -2281,3 +2281,40 @@ def test_stop38_fresh_cases_660_699_read_once_with_the_final_code():
     readme = " ".join(README.split())
     assert "final code): 30 of 41 (73 %), clean 7 of 7, 10 false names; 27 of 36 visible effects (75 %).**" in readme
     assert "73 % on 660-699 with clean 7 of 7" in readme
+
+
+def test_stop38_a_spring_found_through_its_cycle_lags_under_the_load_its_link_carries():
+    """Stop 38's third change (LoadedElasticity's lag under the torque-band rigid torque): the cases whose dumps
+    hold a rattle on a loaded joint named a play beside a spring reading taking >= SPRING_SHARE, and 620-659,
+    diagnosed again. Exactly six change: five shoulder springs named in place of a play (103, 475 in sample and
+    out; 664, 670, 685 of 660-699, which this change was read on: no longer out of sample), their stiffness read
+    0.35-0.6x soft (the first-order lag near the band), 664's wrist coupling named with it; and one play named a
+    spring (408, 500 Hz). The README says so."""
+    pairs = {"fresh44": ("fresh44-2026-11-28-stop38c", "fresh44-2026-11-28-stop38")}
+    for name in ("sim", "fresh34", "fresh38", "fresh40", "fresh41", "fresh42", "fresh43"):
+        pairs[name] = (f"{name}-2026-11-28-stop38c", f"{name}-2026-11-28-stop38b")
+    changed = {}
+    for name, (a, b) in pairs.items():
+        new, _ = _scored(a)
+        old, _ = _scored(b)
+        assert [r["seed"] for r in new] == [r["seed"] for r in old]
+        for r, q in zip(new, old):
+            if _names(r) != _names(q):
+                changed[r["seed"]] = (r, q)
+            else:
+                assert [f["effect"] for f in r["named"]] == [f["effect"] for f in q["named"]], r["seed"]
+    assert sorted(changed) == [103, 408, 475, 664, 670, 685]
+    for seed, (r, q) in changed.items():
+        assert ("backlash", 1) in _names(q) and ("joint_elasticity", 1) in _names(r)
+        truth = next(e for e in r["effects"] if e["joints"] == [1])
+        assert truth["kind"] == ("backlash" if seed == 408 else "joint_elasticity")
+        if seed != 408:
+            k = next(f for f in r["named"] if f["kind"] == "joint_elasticity")["effect"]["stiffness"]
+            assert 0.35 * truth["stiffness"] < k < 0.6 * truth["stiffness"], seed
+    assert ("coupling", 4) in _names(changed[664][0]) and ("coupling", 4) not in _names(changed[664][1])
+    want = {"sim": (240, 293, 37, 38, 15), "fresh38": (30, 41, 7, 7, 5), "fresh44": (34, 41, 7, 7, 7)}
+    for name, counts in want.items():
+        _, s = _scored(pairs[name][0])
+        assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == counts
+    readme = " ".join(README.split())
+    assert "**exactly six change**" in readme and "660-699 read 34 of 41 (83 %), 7 false names" in readme
