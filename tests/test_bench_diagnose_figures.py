@@ -2318,3 +2318,20 @@ def test_stop38_a_spring_found_through_its_cycle_lags_under_the_load_its_link_ca
         assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == counts
     readme = " ".join(README.split())
     assert "**exactly six change**" in readme and "660-699 read 34 of 41 (83 %), 7 false names" in readme
+
+
+def test_stop38_fresh_cases_700_739_read_once_with_the_final_code():
+    """Cases 700-739, drawn, recorded and diagnosed once after stop 38's three changes: 29 of 38, clean 7 of 7, 3
+    false names, 28 of 32 visible; the README says so."""
+    rows, s = _scored("fresh45-2026-11-28-stop38")
+    assert [r["seed"] for r in rows] == list(range(700, 740))
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == (29, 38, 7, 7, 3)
+    assert (s["visible_found"], s["visible"]) == (28, 32)
+    springs = [(r["seed"], e["joints"][0]) for r in rows for e in r["effects"] if e["kind"] == "joint_elasticity"]
+    named = {r["seed"]: _names(r) for r in rows}
+    assert (len(springs), sum(("joint_elasticity", j) in named[c] for c, j in springs)) == (9, 4)
+    assert sorted(c for c, j in springs if ("backlash", j) in named[c]) == [718, 724]
+    readme = " ".join(README.split())
+    assert ("nothing was read on them before): 29 of 38 (76 %), clean 7 of 7, 3 false names; 28 of 32 visible "
+            "effects (88 %).**") in readme
+    assert "76 % on 700-739 with clean 7 of 7" in readme
