@@ -2335,3 +2335,25 @@ def test_stop38_fresh_cases_700_739_read_once_with_the_final_code():
     assert ("nothing was read on them before): 29 of 38 (76 %), clean 7 of 7, 3 false names; 28 of 32 visible "
             "effects (88 %).**") in readme
     assert "76 % on 700-739 with clean 7 of 7" in readme
+
+
+def test_stop38_confusion_matrix_of_this_release_in_the_readme():
+    """The README's confusion matrix of this release: every cell, the totals and the false names, from the rows of
+    all 580 simulator cases with a kept recording (stop 38's final rows)."""
+    rows = []
+    for name in ("sim", "fresh34", "fresh38", "fresh40", "fresh41", "fresh42", "fresh43", "fresh44"):
+        rows += _scored(f"{name}-2026-11-28-stop38c")[0]
+    rows += _scored("fresh45-2026-11-28-stop38")[0]
+    assert len(rows) == 580 and len({r["seed"] for r in rows}) == 580
+    s = bench_score(rows)
+    for kind, row in s["confusion"].items():
+        if sum(row.values()):
+            line = _confusion_line(f"none ({s['clean']} clean cases)" if kind == "none" else kind, row)
+            assert line in README, line
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == (497, 617, 100, 101, 43)
+    assert (s["visible_found"], s["visible"]) == (455, 501)
+    assert {k: v for k, v in s["false_names"].items() if v} == {
+        "backlash": 27, "joint_elasticity": 8, "coupling": 3, "payload_change": 2, "torque_offset": 2, "stribeck": 1}
+    readme = " ".join(README.split())
+    assert ("**497 of 617 effects right (81 %)**, clean **100 of 101**, 43 false names (backlash 27, elasticity 8, "
+            "coupling 3, payload 2, torque offset 2, Stribeck 1); 455 of 501 visible effects (91 %)") in readme
