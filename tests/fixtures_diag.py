@@ -37,3 +37,25 @@ def recording(effects_json: str) -> Path:
                 res = run_trials(group, robot, ["excitation", "validation"], path)
             assert not res.aborted, res.reason
     return path
+
+
+def bench_recording(seed: int, folder: Path) -> tuple[dict, Path]:
+    """Bench case ``seed`` of scripts/bench_diagnose.py (its own trajectory, sample rate and effects), recorded by the
+    simulator into ``folder`` as the bench records it: (the drawn case, the recording's path)."""
+    import copy
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+    import bench_diagnose as bench
+    from js2io.session import _default_trials
+    from js2io.trials import load_trials_config
+    from js2spec.robot import load_robot
+
+    robot = load_robot("js2")
+    base = load_trials_config(robot.trials_path or _default_trials())
+    case = bench.draw_case(seed, 6, base)
+    cfg = copy.deepcopy(base)
+    cfg.update(copy.deepcopy(case["trials"]))
+    rec = folder / f"case_{seed:03d}.mcap"
+    bench.record(robot, rec, case["effects"], cfg, seed=seed, cycle_hz=case["cycle_hz"])
+    return case, rec

@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from fixtures_diag import clean_model, recording
+from fixtures_diag import bench_recording, clean_model, recording
 
 
 def _diagnose(effects: list[dict]):
@@ -167,24 +167,9 @@ def test_found_effect_simulates_back_and_fits_the_recording(tmp_path):
 def _bench_case(seed: int, tmp_path):
     """Bench case ``seed`` of scripts/bench_diagnose.py (its own trajectory, sample rate and effects), recorded by
     the simulator as the bench does and diagnosed with the test model: (case, DiagnosisResult)."""
-    import copy
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-    import bench_diagnose as bench
     from diagnosis.run import diagnose
-    from js2io.session import _default_trials
-    from js2io.trials import load_trials_config
-    from js2spec.robot import load_robot
 
-    robot = load_robot("js2")
-    base = load_trials_config(robot.trials_path or _default_trials())
-    case = bench.draw_case(seed, 6, base)
-    cfg = copy.deepcopy(base)
-    cfg.update(copy.deepcopy(case["trials"]))
-    rec = tmp_path / f"case_{seed:03d}.mcap"
-    bench.record(robot, rec, case["effects"], cfg, seed=seed, cycle_hz=case["cycle_hz"])
+    case, rec = bench_recording(seed, tmp_path)
     return case, diagnose(clean_model(), rec)
 
 

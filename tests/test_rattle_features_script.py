@@ -2,38 +2,21 @@
 from its spring (docs/diagnosis.md, stop 38). At 250 Hz a play's share of the link's torque missed rises with the
 load the link carries (pushed on a contact when the load is high) and a spring's does not; recorded here as the
 bench records its cases 15 (a 0.026 rad play) and 97 (a 2120 N*m/rad spring), both on the vertical base axis."""
-import copy
 import json
 import sys
 from pathlib import Path
 
 import pytest
 
-from fixtures_diag import clean_model
+from fixtures_diag import bench_recording, clean_model
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 import rattle_features  # noqa: E402
 
 
-def _bench_recording(seed: int, tmp_path) -> tuple[dict, Path]:
-    import bench_diagnose as bench
-    from js2io.session import _default_trials
-    from js2io.trials import load_trials_config
-    from js2spec.robot import load_robot
-
-    robot = load_robot("js2")
-    base = load_trials_config(robot.trials_path or _default_trials())
-    case = bench.draw_case(seed, 6, base)
-    cfg = copy.deepcopy(base)
-    cfg.update(copy.deepcopy(case["trials"]))
-    rec = tmp_path / f"case_{seed:03d}.mcap"
-    bench.record(robot, rec, case["effects"], cfg, seed=seed, cycle_hz=case["cycle_hz"])
-    return case, rec
-
-
 def test_a_base_play_and_a_base_spring_at_250_hz_differ_in_the_share_by_load(tmp_path, capsys):
-    play, rec_play = _bench_recording(15, tmp_path)
-    spring, rec_spring = _bench_recording(97, tmp_path)
+    play, rec_play = bench_recording(15, tmp_path)
+    spring, rec_spring = bench_recording(97, tmp_path)
     assert [(e["kind"], e["joints"]) for e in play["effects"]] == [("backlash", [0])]
     assert [(e["kind"], e["joints"]) for e in spring["effects"]] == [("joint_elasticity", [0])]
     assert play["cycle_hz"] == spring["cycle_hz"] == 250.0
