@@ -1357,7 +1357,7 @@ class JointElasticity(Term):
         # the lag -tau/k holds below the link's resonance only: tau_j in the torque's band before it is
         # differentiated (the rigid torque is made from the unfiltered acceleration; its second derivative would
         # carry that band's noise times omega^2, which the rows zeroed at rest would fold into the torque band)
-        tau_j = rd.signals.filter_like_torque(np.nan_to_num(rd.tau_rigid_joint[:, j:j + 1]))[:, 0]
+        tau_j = JointElasticity.band_load(rd, j)
         dt = 1.0 / rd.fs
         tau_dd = np.gradient(np.gradient(tau_j, dt), dt)
         joint_side = _rnea_dq(rd, j) * tau_j[:, None] + _mass_column(rd, j) * tau_dd[:, None]
@@ -1366,11 +1366,22 @@ class JointElasticity(Term):
         return col
 
     @staticmethod
-    def lag(rd, j: int, compliance: float) -> float:
+    def load(rd, j: int) -> np.ndarray:
+        """(N,) N*m joint side: the load :meth:`lag` reads, joint j's rigid torque as predicted (NaN as 0)."""
+        return np.nan_to_num(rd.tau_rigid_joint[:, j])
+
+    @staticmethod
+    def band_load(rd, j: int) -> np.ndarray:
+        """(N,) N*m joint side: joint j's rigid torque in the torque band (filtered like the measured torque,
+        ``Signals.filter_like_torque``; NaN as 0)."""
+        return rd.signals.filter_like_torque(np.nan_to_num(rd.tau_rigid_joint[:, j:j + 1]))[:, 0]
+
+    @classmethod
+    def lag(cls, rd, j: int, compliance: float) -> float:
         """rad: how far the link lags its gear under its own load at this compliance (rad/(N*m)): the 99th
-        percentile of joint j's rigid torque over its usable rows times it; 0 for a compliance that is not
+        percentile of joint j's load (:meth:`load`) over its usable rows times it; 0 for a compliance that is not
         positive."""
-        tau = np.abs(np.nan_to_num(rd.tau_rigid_joint[:, j]))[rd.mask[:, j]]
+        tau = np.abs(cls.load(rd, j))[rd.mask[:, j]]
         return float(np.percentile(tau, 99)) * float(compliance) if len(tau) and compliance > 0 else 0.0
 
     def effect(self, rd, j, h, coef, std):
@@ -1409,22 +1420,15 @@ class LoadedElasticity(JointElasticity):
     torque band; the false springs that bound guards against (on an elbow beside a shoulder's play) needed
     0.16-0.24 rad, and they are not found through a rattle.
 
-    The lag is taken under the load the link carries (:meth:`lag`, stop 38): the rigid torque in the torque band.
+    The lag is taken under the load the link carries (:meth:`load`, stop 38): the rigid torque in the torque band.
     A link in its own limit cycle does not follow the gear's fast oscillation (what the rattle reads); the model's
     unfiltered torque predicts that oscillation's inertial torque all the same, and in the benchmark's 250 Hz
     shoulder cycles it raised the 99th percentile 5-7x (83-141 N*m against 17-20 in the band), so springs read at
     0.155-0.27 rad were refused and their plays named (cases 103, 475; 664, 670, 685 of the fresh cases 660-699)."""
     MAX_DEFLECTION = 0.15
 
-    @staticmethod
-    def lag(rd, j: int, compliance: float) -> float:
-        """rad: :meth:`JointElasticity.lag` under the torque-band rigid torque of joint j (the load a link in a
-        limit cycle carries; filtered like the measured torque, ``Signals.filter_like_torque``)."""
-        if not compliance > 0:
-            return 0.0
-        band = rd.signals.filter_like_torque(np.nan_to_num(rd.tau_rigid_joint[:, j:j + 1]))[:, 0]
-        tau = np.abs(band)[rd.mask[:, j]]
-        return float(np.percentile(tau, 99)) * float(compliance) if len(tau) else 0.0
+    # the load a link in its limit cycle carries: JointElasticity.lag under the torque-band rigid torque
+    load = staticmethod(JointElasticity.band_load)
 
 
 class SoftCompliance(JointElasticity):
