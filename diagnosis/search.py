@@ -199,6 +199,27 @@ class MismatchSearch:
                                             "share": self._select_share(s0, masks)}
         return st
 
+    def _refine(self, rd: ResidualData, best: Scored, res: dict, weights: dict) -> Scored:
+        """``best`` read again on its term's finer grids (:meth:`Term.refine_grids`): each grid's best point on the
+        fit rows, as on the ladder; the term picks the hyper-parameter from those that pass every test
+        (:meth:`Term.refined`), and the candidate at that point replaces ``best`` if it passes every test too. The
+        name is the ladder's; only its parameters change (select rows compare the readings, report rows stay
+        unseen)."""
+        term, j = best.term, best.fitted.joint
+        grids = term.refine_grids(rd, j, best.fitted.hyper)
+        if not grids:
+            return best
+        cands = [self._evaluate(rd, term, j, res, weights, grid=g) for g in grids]
+        cands = [c for c in cands if c is not None and not self._why_rejected(c)]
+        hyper = term.refined(rd, j, best.fitted.hyper, cands)
+        if hyper == best.fitted.hyper:
+            return best
+        again = self._evaluate(rd, term, j, res, weights, grid=[hyper])
+        if again is None or self._why_rejected(again):
+            return best
+        again.note = best.note
+        return again
+
     @staticmethod
     def _select_share(s0: dict, masks: dict) -> np.ndarray:
         """(n,) how much each motor's select rows count in the 1 % test over all motors: 1, or less where the motor's
@@ -466,6 +487,7 @@ class MismatchSearch:
                                  and s.fitted.joint == best.fitted.joint and not self._why_rejected(s)), best)
                 best = best.term.resolve(rd, best, scored, lambda s: not self._why_rejected(s),   # one mass, two links
                                          accepted=self.accepted_ + self.references_)
+                best = self._refine(rd, best, res, weights)      # its parameters read on a finer grid (Term.refine_grids)
                 # selected on SELECT: its coefficients are now estimated on FIT + SELECT (hyper-parameter kept); the
                 # report rows stay unseen
                 final = self._evaluate(rd, best.term, best.fitted.joint, res, weights,

@@ -21,7 +21,10 @@ def _diagnose(effects: list[dict]):
 
 CASES = [
     # kind, joint, simulator parameters, check(found effect) -> bool
-    ("stribeck", 1, {"velocity": 4.0}, lambda e: 2.5 < e["velocity"] < 6.0),
+    ("stribeck", 1, {"velocity": 4.0}, lambda e: e["shape"] == 2.0 and 3.4 < e["velocity"] < 4.6),
+    # an exponential hump (shape 1): read as shape 2 on the ladder's grid, its v_s came out 1.4-1.7x the truth;
+    # once named it is read again with each shape (Stribeck.refine_grids), and the select rows resolve shape 1
+    ("stribeck", 1, {"velocity": 4.0, "shape": 1.0}, lambda e: e["shape"] == 1.0 and 3.4 < e["velocity"] < 4.6),
     # the phase in hil_sim's convention (the ripple acts on the rotor; the drive supplies minus it), so that the
     # found effect simulates back; the simulator's encoder zero is the rotor's
     ("cogging", 2, {"amplitude": 0.004, "periods_per_rev": 2},
@@ -62,7 +65,8 @@ CASES = [
 def _case_id(case) -> str:
     kind, _, params, _ = case.values if hasattr(case, "marks") else case
     return kind + ("_friction_power" if "friction_power_heating" in params else "") + (
-        f"_{params['periods_per_rev']}_per_rev" if params.get("periods_per_rev", 0) > 4 else "")
+        f"_{params['periods_per_rev']}_per_rev" if params.get("periods_per_rev", 0) > 4 else "") + (
+        "_shape_1" if params.get("shape") == 1.0 else "")
 
 
 @pytest.mark.parametrize("kind, joint, params, check", CASES,

@@ -1345,3 +1345,40 @@ def test_the_unexplained_verdict_and_headline_say_what_takes_the_structure():
     text = headline(d)
     assert "j3 (every regime, mostly 0.5-2 Hz; what takes it: compliance)" in text
     assert "refit of the model's own terms" not in text
+
+
+def _stribeck_rd(select_s: float, fs: float = 500.0, fc: float = 7.0):
+    n = int(select_s * fs)
+    return SimpleNamespace(fs=fs, select_rows=np.ones(n, bool), mask=np.ones((n, 6), bool),
+                           signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=fc)))
+
+
+def _reading(v: float, shape: float, select_gain: float):
+    return SimpleNamespace(fitted=SimpleNamespace(hyper=(v, shape)), select_gain=select_gain)
+
+
+def test_a_stribeck_shape_is_reported_only_where_the_select_rows_prefer_it_by_twenty_to_one():
+    """Stribeck.refined: evidence = n_eff / 2 ln(SSE_other / SSE_best), n_eff = 2 f_c T (T: the select rows' seconds);
+    the shape at 20:1 (ln 20 = 3.0) or more, else shape 2 at its own v_s."""
+    from diagnosis.library import Stribeck
+
+    term = Stribeck()
+    rd = _stribeck_rd(select_s=10.0)                 # n_eff = 2 * 7 * 10 = 140
+    # SSE 0.10 against 0.12 of the baseline: ratio 1.2, evidence 70 ln 1.2 = 12.8 -> shape 1 at its own v_s
+    h = term.refined(rd, 0, (5.0, 2.0), [_reading(3.0, 1.0, 0.90), _reading(4.0, 2.0, 0.88)])
+    assert h[:2] == (3.0, 1.0) and h[2] == pytest.approx(70 * np.log(1.2))
+    # ratio 1.03: evidence 70 ln 1.03 = 2.07 < ln 20 -> not resolved: shape 2 at shape 2's v_s
+    h = term.refined(rd, 0, (5.0, 2.0), [_reading(3.0, 1.0, 0.900), _reading(4.0, 2.0, 0.897)])
+    assert h[:2] == (4.0, 2.0) and h[2] < np.log(20)
+    # the same ratio over 30 s of select rows resolves it (evidence grows with the rows that show it)
+    h = term.refined(_stribeck_rd(select_s=30.0), 0, (5.0, 2.0),
+                     [_reading(3.0, 1.0, 0.900), _reading(4.0, 2.0, 0.897)])
+    assert h[:2] == (3.0, 1.0) and h[2] >= np.log(20)
+    # a shape whose reading fails a test is not compared: shape 2 alone is kept, unresolved; none: the ladder's
+    assert term.refined(rd, 0, (5.0, 2.0), [_reading(4.0, 2.0, 0.88)]) == (4.0, 2.0, 0.0)
+    assert term.refined(rd, 0, (5.0, 2.0), [_reading(3.0, 1.0, 0.90)]) == (5.0, 2.0)
+    assert term.refined(rd, 0, (5.0, 2.0), []) == (5.0, 2.0)
+    # the finding says which it was
+    assert "shape 1, preferred to shape 2" in term._shape_text((3.0, 1.0, 12.8))
+    assert "shape not resolved" in term._shape_text((4.0, 2.0, 2.0))
+    assert "does not resolve" in term._shape_text((4.0, 2.0))
