@@ -45,6 +45,7 @@ from scipy.stats import chi2
 from identification.base import base_parameters
 
 from .link_kernel import link_torques
+from .ripple_kernel import ripple_columns
 from .residual import ResidualData
 
 
@@ -651,29 +652,24 @@ class Cogging(Term):
             if spans is not None:
                 speed = speed[keep]
             masks = not self._under(speed, max(grid), rd.fs).all()   # some period count of the grid skips rows
-            fwd_all, bwd_all = fwd, bwd
+        else:
+            speed, masks = np.zeros(len(th)), False
         s1, c1 = np.sin(th), np.cos(th)
         per = max(1, self.GRID_BATCH // (4 * len(th)))
         for start in range(0, len(grid), per):
             chunk = grid[start:start + per]
             XT = np.empty((len(chunk), 4, len(th)))        # time along the last axis: the filter's layout
-            prev = None
-            for i, h in enumerate(chunk):
-                if prev is not None and h == prev[0] + 1 and i % self.RECUR:
-                    # sin, cos of (p + 1) theta by the angle-addition rule from p theta's (a few ulp from np.sin;
-                    # np.sin anew every RECUR period counts)
-                    s = prev[1] * c1 + prev[2] * s1
-                    c = prev[2] * c1 - prev[1] * s1
-                else:
-                    s, c = np.sin(h * th), np.cos(h * th)
-                prev = (h, s, c)
-                if self.band == "low" and masks:
-                    under = self._under(speed, h, rd.fs).astype(float)
-                    fwd, bwd = fwd_all * under, bwd_all * under
-                np.multiply(s, fwd, out=XT[i, 0])
-                np.multiply(c, fwd, out=XT[i, 1])
-                np.multiply(s, bwd, out=XT[i, 2])
-                np.multiply(c, bwd, out=XT[i, 3])
+            # sin, cos of (p + 1) theta by the angle-addition rule from p theta's (a few ulp from np.sin), np.sin
+            # anew at the batch's start, every RECUR period counts and after a gap in the grid; the columns, the
+            # speed mask (:meth:`sampled`) and the direction products in one compiled pass
+            # (:func:`diagnosis.ripple_kernel.ripple_columns`: the same numbers as the numpy steps)
+            anchor = np.full(len(chunk), -1, dtype=np.int64)
+            fresh = [i for i, h in enumerate(chunk) if i % self.RECUR == 0 or h != chunk[i - 1] + 1]
+            anchor[fresh] = np.arange(len(fresh))
+            sin_a = np.stack([np.sin(chunk[i] * th) for i in fresh])
+            cos_a = np.stack([np.cos(chunk[i] * th) for i in fresh])
+            ripple_columns(np.asarray(chunk, dtype=np.int64), anchor, sin_a, cos_a, s1, c1, fwd, bwd, speed,
+                           bool(self.band == "low" and masks), float(np.pi * rd.fs), XT)
             if self.band == "low":
                 XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1), spans)[:, on].reshape(len(chunk), 4, -1)
             for i, h in enumerate(chunk):

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import butter, sosfilt, sosfilt_zi
+from scipy.signal import butter, sosfilt_zi
 
 from identification.regressor import arm_model, build_regressor, standard_vector
 from identification.signals import (NYQUIST_MARGIN, PAPER_FC_ACCELERATION_HZ, PAPER_FC_VELOCITY_HZ, FilterSettings,
@@ -34,6 +34,8 @@ from js2spec.drives import at_rest, motor_rest_speed
 from js2spec.errors import Js2Error
 from js2spec.log import read_log
 from js2spec.model import IdentifiedModel
+
+from .filter_kernel import filtfilt_rows_kernel
 
 
 class DiagnosisError(Js2Error):
@@ -155,18 +157,12 @@ def filtfilt_rows(sos: np.ndarray, zi: np.ndarray, x: np.ndarray, padlen: int) -
     """``scipy.signal.sosfiltfilt(sos, x, axis=-1, padlen=padlen)`` (odd extension) of the rows of x (M, L), with the
     filter's initial state ``zi = sosfilt_zi(sos).reshape(len(sos), 1, 2)`` made once per recording instead of once
     per call (solving a linear system per section each time: 1.3 CPU s of the speed bench's search). The same steps
-    as scipy's, on the same numbers: the same result to the bit (``tests/test_diag_exact_speedups.py``)."""
+    as scipy's, on the same numbers, compiled and 8 series at a time (:mod:`diagnosis.filter_kernel`): the same
+    result to the bit (``tests/test_diag_exact_speedups.py``)."""
     if x.shape[-1] <= padlen:
         raise ValueError(f"filtfilt_rows: {x.shape[-1]} samples, padlen {padlen}")
-    if padlen > 0:
-        ext = np.concatenate((2 * x[:, :1] - x[:, padlen:0:-1], x, 2 * x[:, -1:] - x[:, -2:-(padlen + 2):-1]),
-                             axis=-1)
-    else:
-        ext = x
-    y, _ = sosfilt(sos, ext, axis=-1, zi=zi * ext[:, :1])
-    y, _ = sosfilt(sos, y[:, ::-1], axis=-1, zi=zi * y[:, -1:])
-    y = y[:, ::-1]
-    return y[:, padlen:-padlen] if padlen > 0 else y
+    return filtfilt_rows_kernel(np.asarray(sos, dtype=float), np.asarray(zi, dtype=float),
+                                np.asarray(x, dtype=float), int(padlen))
 
 
 def model_cutoffs(fs: float, model: IdentifiedModel | None = None) -> FilterSettings:

@@ -302,8 +302,9 @@ class Js2Log:
     def command(self) -> CommandArrays | None:
         """The /js2/command channel as arrays (None if the log has none); decoded lazily: identification rarely needs it."""
         if not hasattr(self, "_command"):
-            self._command = (_command_arrays(self.path, self.command_raw, self.drives.n)
-                             if self.command_raw else None)
+            join = getattr(self, "_command_join", None)      # a joined session: its files' commands, joined on use
+            self._command = (join() if join is not None else
+                             _command_arrays(self.path, self.command_raw, self.drives.n) if self.command_raw else None)
         return self._command
 
     @property
@@ -562,9 +563,7 @@ def join_logs(logs: list[Js2Log], gap_cycles: int = 50) -> Js2Log:
             continue
         dt_shift, dc_shift = t_next - float(fb.t[0]), c_next - int(fb.cycle[0])
         fbs.append((fb, dt_shift, dc_shift))
-        cmd = lg.command
-        if cmd is not None and len(cmd):
-            cmds.append((cmd, dt_shift, dc_shift))
+        cmds.append((lg, dt_shift, dc_shift))
         events += [dict(e, t=float(e["t"]) + dt_shift) for e in lg.events]
         warnings += [f"{lg.path.name}: {w}" for w in lg.warnings]
         if lg.recovered_note:
@@ -587,12 +586,22 @@ def join_logs(logs: list[Js2Log], gap_cycles: int = 50) -> Js2Log:
                     truncated=any(lg.truncated for lg in logs), damage=[d for lg in logs for d in lg.damage],
                     recovered_note="; ".join(notes), warnings=warnings,
                     sha256=",".join(lg.sha256 for lg in logs))
-    joined._command = (CommandArrays(cycle=np.concatenate([c.cycle + dc for c, _, dc in cmds]),
-                                     t=np.concatenate([c.t + dt_ for c, dt_, _ in cmds]), mode=cat(cmds, "mode"),
-                                     target_torque=cat(cmds, "target_torque"),
-                                     target_velocity=cat(cmds, "target_velocity"),
-                                     target_position=cat(cmds, "target_position"))
-                       if cmds and len(cmds) == len(fbs) else None)
+
+    def command():
+        """The files' commands joined like their feedback (decoded on first use: the diagnosis of a session
+        without static trials never reads them, 0.1 s per 40 s file); None unless every file with feedback has
+        them."""
+        parts = [(lg.command, dt_, dc) for lg, dt_, dc in cmds]
+        parts = [(c, dt_, dc) for c, dt_, dc in parts if c is not None and len(c)]
+        if not parts or len(parts) != len(fbs):
+            return None
+        return CommandArrays(cycle=np.concatenate([c.cycle + dc for c, _, dc in parts]),
+                             t=np.concatenate([c.t + dt_ for c, dt_, _ in parts]), mode=cat(parts, "mode"),
+                             target_torque=cat(parts, "target_torque"),
+                             target_velocity=cat(parts, "target_velocity"),
+                             target_position=cat(parts, "target_position"))
+
+    joined._command_join = command
     return joined
 
 

@@ -123,14 +123,71 @@ def test_responses_of_a_recording_are_the_numpy_loops():
         assert np.array_equal(got[j][0], w), j
 
 
+@pytest.mark.parametrize("rows", [1, 5, 19])
 @pytest.mark.parametrize("length,padlen", [(5000, 60), (61, 60), (40, 39), (2, 1), (1, 0)])
-def test_filtfilt_rows_is_scipys_sosfiltfilt_to_the_bit(length, padlen):
-    """``diagnosis.residual.filtfilt_rows`` (the filter's initial state made once) against scipy's own."""
+def test_filtfilt_rows_is_scipys_sosfiltfilt_to_the_bit(length, padlen, rows):
+    """``diagnosis.residual.filtfilt_rows`` (the filter's initial state made once, the compiled loop 8 series at a
+    time: 19 rows are two full blocks and a partial one) against scipy's own."""
     from scipy.signal import butter, sosfilt_zi, sosfiltfilt
 
     from diagnosis.residual import filtfilt_rows
 
     sos = butter(4, 7.0, fs=500.0, output="sos")
-    x = np.random.default_rng(length).normal(size=(5, length)).cumsum(axis=1)
+    x = np.random.default_rng(length).normal(size=(rows, length)).cumsum(axis=1)
     zi = sosfilt_zi(sos).reshape(len(sos), 1, 2)
     assert np.array_equal(filtfilt_rows(sos, zi, x, padlen), sosfiltfilt(sos, x, axis=-1, padlen=padlen))
+    # a view with strides (every other sample), as the search passes slices of its batches
+    xs = np.random.default_rng(length + 1).normal(size=(rows, 2 * length)).cumsum(axis=1)[:, ::2]
+    assert np.array_equal(filtfilt_rows(sos, zi, xs, padlen), sosfiltfilt(sos, xs, axis=-1, padlen=padlen))
+
+
+def _ripple_columns_numpy(chunk, th, fwd, bwd, speed, masked, fs, recur=8):
+    """The numpy steps diagnosis.ripple_kernel replaced (Cogging.grid_columns until stop 39), as they were."""
+    s1, c1 = np.sin(th), np.cos(th)
+    XT = np.empty((len(chunk), 4, len(th)))
+    prev = None
+    fwd_all, bwd_all = fwd, bwd
+    for i, h in enumerate(chunk):
+        if prev is not None and h == prev[0] + 1 and i % recur:
+            s = prev[1] * c1 + prev[2] * s1
+            c = prev[2] * c1 - prev[1] * s1
+        else:
+            s, c = np.sin(h * th), np.cos(h * th)
+        prev = (h, s, c)
+        if masked:
+            under = (speed * h <= np.pi * fs).astype(float)
+            fwd, bwd = fwd_all * under, bwd_all * under
+        np.multiply(s, fwd, out=XT[i, 0])
+        np.multiply(c, fwd, out=XT[i, 1])
+        np.multiply(s, bwd, out=XT[i, 2])
+        np.multiply(c, bwd, out=XT[i, 3])
+    return XT
+
+
+@pytest.mark.parametrize("masked", [False, True])
+def test_ripple_columns_are_the_numpy_steps_to_the_bit(masked):
+    """diagnosis.ripple_kernel.ripple_columns, with the anchors Cogging.grid_columns computes (the batch's start,
+    every RECUR period counts, after a gap in the grid), against the numpy steps it replaced."""
+    from diagnosis.library import Cogging
+    from diagnosis.ripple_kernel import ripple_columns
+
+    rng = np.random.default_rng(7)
+    L, fs = 3000, 250.0
+    th = np.cumsum(rng.normal(0.0, 0.05, L)) + 40.0            # a motor angle far from 0 (large p theta)
+    w = np.gradient(th) * fs
+    sliding = (rng.uniform(size=L) > 0.1).astype(float)
+    fwd = (w >= 0).astype(float) * sliding
+    bwd = (1 - (w >= 0).astype(float)) * sliding
+    speed = np.abs(w)
+    chunk = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 14, 15, 40, 41, 96]     # runs, gaps, more than RECUR in a row
+    want = _ripple_columns_numpy(chunk, th, fwd, bwd, speed, masked, fs, Cogging.RECUR)
+    fresh = [i for i, h in enumerate(chunk) if i % Cogging.RECUR == 0 or h != chunk[i - 1] + 1]
+    anchor = np.full(len(chunk), -1, dtype=np.int64)
+    anchor[fresh] = np.arange(len(fresh))
+    got = np.empty_like(want)
+    ripple_columns(np.asarray(chunk, dtype=np.int64), anchor, np.stack([np.sin(chunk[i] * th) for i in fresh]),
+                   np.stack([np.cos(chunk[i] * th) for i in fresh]), np.sin(th), np.cos(th), fwd, bwd, speed,
+                   masked, float(np.pi * fs), got)
+    assert np.array_equal(got, want)
+    if masked:      # the mask bites: some rows of the fine ripples are zeroed, not of the coarse ones
+        assert (got[-1] == 0).sum() > (got[0] == 0).sum()

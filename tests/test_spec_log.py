@@ -238,7 +238,10 @@ def test_join_logs_makes_one_session_of_several_files(tmp_path, robot):
     assert np.all(np.diff(j.feedback.t) > 0)
     starts = [e["t"] for e in j.events if e["kind"] == "trial_start"]
     assert starts == pytest.approx([0.0, j.feedback.t[300]])
+    # the files' commands are decoded when the joined session's are first read, not by the join
+    assert not hasattr(a, "_command") and not hasattr(b, "_command")
     assert len(j.command) == 500 and j.command.t[300] == pytest.approx(j.feedback.t[300])
+    np.testing.assert_array_equal(j.command.target_torque[300:], b.command.target_torque)
     assert join_logs([a]) is a
 
 
