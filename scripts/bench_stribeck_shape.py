@@ -91,6 +91,10 @@ def main(argv=None) -> int:
     if a.cases < 1:
         print("bench_stribeck_shape: error: --cases must be at least 1", file=sys.stderr)
         return 2
+    if a.model is not None and not (a.model / "model.yaml").is_file():
+        print(f"bench_stribeck_shape: error: {a.model} holds no model.yaml (give a js2-identify output folder, or "
+              "leave --model out to have OUT/model made)", file=sys.stderr)
+        return 2
     import bench_diagnose as B
 
     from diagnosis.run import diagnose

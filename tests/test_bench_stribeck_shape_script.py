@@ -31,6 +31,8 @@ def test_one_case_is_recorded_diagnosed_and_its_hump_read_with_its_shape(tmp_pat
     assert "case   3:" in printed and "shape right: 1 of 1" in printed
 
 
-def test_no_cases_is_one_error_line(capsys):
+def test_no_cases_or_no_model_is_one_error_line(tmp_path, capsys):
     assert bench_stribeck_shape.main(["--cases", "0"]) == 2
     assert "must be at least 1" in capsys.readouterr().err
+    assert bench_stribeck_shape.main(["--model", str(tmp_path / "nomodel"), "--out", str(tmp_path / "out")]) == 2
+    assert "holds no model.yaml" in capsys.readouterr().err and not (tmp_path / "nomodel").exists()
