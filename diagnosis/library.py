@@ -507,9 +507,10 @@ class Stribeck(Term):
         torque blurs the hump's flank, so the shape often stays unresolved; a wrong shape then costs v_s accuracy
         only. Shape 2 is the default as on the ladder."""
         by_shape = {float(c.fitted.hyper[1]): c for c in candidates}
-        two = by_shape.get(2.0)
+        default = STRIBECK_SHAPES[0]                 # the ladder's shape, reported where the shape is not resolved
+        two = by_shape.get(default)
         if len(by_shape) < 2:
-            return h if two is None else (float(two.fitted.hyper[0]), 2.0, 0.0)
+            return h if two is None else (float(two.fitted.hyper[0]), default, 0.0)
         ranked = sorted(by_shape.values(), key=lambda c: c.select_gain, reverse=True)
         win, other = ranked[0], ranked[1]
         sse_ratio = max(1.0 - other.select_gain, 0.0) / max(1.0 - win.select_gain, 1e-12)

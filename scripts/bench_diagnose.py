@@ -185,6 +185,31 @@ def draw_case(seed: int, n: int, base_trials: dict) -> dict:
             "trials": {k: trials[k] for k in ("excitation", "validation", "control")}}
 
 
+def bench_model(out: Path, robot) -> Path | None:
+    """OUT/model: the model every simulator bench diagnoses with, made once. The simulated Js-2 records the
+    identification trials (static, velocity, acceleration, validation; no hidden effect) into
+    OUT/clean_session.mcap, and js2-identify (mixed method) identifies it; each step is skipped when its output is
+    there. None when js2-identify fails."""
+    from identification.cli.identify import main as identify_main
+
+    out.mkdir(parents=True, exist_ok=True)
+    session = out / "clean_session.mcap"
+    if not session.is_file():
+        print("recording the clean identification session ...", flush=True)
+        from hil_sim.direct import DirectDriveGroup
+        from hil_sim.plant import Plant
+        from js2io.session import run_trials
+
+        with DirectDriveGroup(robot, plant=Plant(robot, seed=0), seed=0) as group:
+            run_trials(group, robot, ["static", "velocity", "acceleration", "validation"], session)
+    model = out / "model"
+    if not (model / "model.yaml").is_file():
+        print("identifying the model (mixed method) ...", flush=True)
+        if identify_main([str(session), "-o", str(model), "-q", "--no-report"]) != 0:
+            return None
+    return model
+
+
 def record(robot, path: Path, effects, trials_cfg: dict, seed: int, cycle_hz: float | None = None) -> None:
     from hil_sim.direct import DirectDriveGroup
     from hil_sim.plant import Plant
@@ -556,28 +581,15 @@ def main(argv=None) -> int:
         print_report(score(rows), rows)
         return 0
     keep = a.keep_recordings or a.rediagnose or a.record_only
-    from identification.cli.identify import main as identify_main
     from js2io.session import _default_trials
     from js2io.trials import load_trials_config
     from js2spec.robot import load_robot
 
-    a.out.mkdir(parents=True, exist_ok=True)
     robot = load_robot("js2")
     base_cfg = load_trials_config(robot.trials_path or _default_trials())
-    session = a.out / "clean_session.mcap"
-    if not session.is_file():
-        print("recording the clean identification session ...", flush=True)
-        from hil_sim.direct import DirectDriveGroup
-        from hil_sim.plant import Plant
-        from js2io.session import run_trials
-
-        with DirectDriveGroup(robot, plant=Plant(robot, seed=0), seed=0) as group:
-            run_trials(group, robot, ["static", "velocity", "acceleration", "validation"], session)
-    model = a.out / "model"
-    if not (model / "model.yaml").is_file():
-        print("identifying the model (mixed method) ...", flush=True)
-        if identify_main([str(session), "-o", str(model), "-q", "--no-report"]) != 0:
-            return 1
+    model = bench_model(a.out, robot)
+    if model is None:
+        return 1
     rows = []
     n = robot.drives.n
     for seed in range(a.first, a.first + a.cases):

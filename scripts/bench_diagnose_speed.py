@@ -36,24 +36,16 @@ GOAL_S = 30.0
 
 
 def prepare(out: Path) -> tuple[Path, Path]:
+    from bench_diagnose import bench_model
     from hil_sim.direct import DirectDriveGroup
     from hil_sim.plant import Plant
-    from identification.cli.identify import main as identify_main
     from js2io.session import run_trials
     from js2spec.robot import load_robot
 
     robot = load_robot("js2")
-    out.mkdir(parents=True, exist_ok=True)
-    session = out / "clean_session.mcap"
-    if not session.is_file():
-        print("recording the clean identification session ...", flush=True)
-        with DirectDriveGroup(robot, plant=Plant(robot, seed=0), seed=0) as group:
-            run_trials(group, robot, ["static", "velocity", "acceleration", "validation"], session)
-    model = out / "model"
-    if not (model / "model.yaml").is_file():
-        print("identifying the model ...", flush=True)
-        if identify_main([str(session), "-o", str(model), "-q", "--no-report"]) != 0:
-            raise SystemExit("js2-identify failed")
+    model = bench_model(out, robot)
+    if model is None:
+        raise SystemExit("js2-identify failed")
     rec = out / "payload_recording.mcap"
     if not rec.is_file():
         print("recording excitation + validation with a hidden 0.4 kg payload ...", flush=True)

@@ -42,6 +42,8 @@ def draw(seed: int, robot, base_cfg: dict) -> dict:
 def readings(res, joint: int) -> dict | None:
     """The named reading and the ladder's (the Stribeck candidate on ``joint`` in the ranking of the step that
     accepted it, before :meth:`Stribeck.refined`); None when no Stribeck was named on that joint."""
+    from diagnosis.library import Stribeck
+
     named = [s for s in res.accepted if s.fitted.kind == "stribeck" and s.fitted.joint == joint]
     if not named:
         return None
@@ -51,7 +53,7 @@ def readings(res, joint: int) -> dict | None:
               if s.fitted.kind == "stribeck" and s.fitted.joint == joint][-1]
     evidence = float(h[2]) if len(h) > 2 else float("nan")
     return {"velocity": float(h[0]), "shape": float(h[1]), "evidence": evidence,
-            "resolved": bool(evidence >= np.log(20.0)),
+            "resolved": bool(evidence >= Stribeck.RESOLVED),
             "ladder_velocity": float(ladder[0]), "ladder_shape": float(ladder[1])}
 
 
@@ -105,21 +107,9 @@ def main(argv=None) -> int:
     robot = load_robot("js2")
     base_cfg = load_trials_config(robot.trials_path or _default_trials())
     a.out.mkdir(parents=True, exist_ok=True)
-    model = a.model or a.out / "model"
-    if not (model / "model.yaml").is_file():
-        from hil_sim.direct import DirectDriveGroup
-        from hil_sim.plant import Plant
-        from identification.cli.identify import main as identify_main
-        from js2io.session import run_trials
-
-        session = a.out / "clean_session.mcap"
-        if not session.is_file():
-            print("recording the clean identification session ...", flush=True)
-            with DirectDriveGroup(robot, plant=Plant(robot, seed=0), seed=0) as group:
-                run_trials(group, robot, ["static", "velocity", "acceleration", "validation"], session)
-        print("identifying the model (mixed method) ...", flush=True)
-        if identify_main([str(session), "-o", str(model), "-q", "--no-report"]) != 0:
-            return 1
+    model = a.model or B.bench_model(a.out, robot)
+    if model is None:
+        return 1
     rows = []
     for seed in range(a.first, a.first + a.cases):
         case = draw(seed, robot, base_cfg)

@@ -21,6 +21,21 @@ EFFECTS = [{"kind": "payload_change", "joints": [5], "mass": 0.3, "com": [0.05, 
            {"kind": "stribeck", "joints": [1], "velocity": 4.0}]
 
 
+def _totals(text: str) -> list:
+    """The (total CPU s, CPU s per 4 minutes, ratio to the goal) strings of every run scripts/bench_diagnose_speed.py
+    printed in ``text``."""
+    import re
+
+    return re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", text, flags=re.M)
+
+
+def _search_s(text: str) -> str:
+    """The search's CPU seconds scripts/bench_diagnose_speed.py printed in ``text`` (its first run)."""
+    import re
+
+    return re.search(r"search \(every candidate, every step\)\s+([\d.]+)", text).group(1)
+
+
 @pytest.fixture(scope="module")
 def rd():
     from diagnosis.residual import residual_data
@@ -221,7 +236,7 @@ def test_docs_speed_figures_are_the_committed_bench_runs(runs_file):
 
     root = Path(__file__).resolve().parent.parent
     runs = (root / "docs/bench" / runs_file).read_text()
-    totals = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", runs, flags=re.M)
+    totals = _totals(runs)
     assert len(totals) == 4
     (b1, b1m, b1x), (a1, a1m, a1x), (b2, b2m, b2x), (a2, a2m, a2x) = totals
     assert re.findall(r"^## run (\d), (before|after)", runs, flags=re.M) == [
@@ -238,7 +253,6 @@ def test_docs_speed_figures_are_the_committed_bench_runs(runs_file):
 def test_stop28_speed_figures_in_the_docs_are_the_committed_runs():
     """docs/diagnosis.md's stop-28 speed paragraph: the totals, per-4-minute figures and ratios are what
     scripts/bench_diagnose_speed.py printed in the committed runs (this release, then the stop-27 code, twice)."""
-    import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
@@ -246,7 +260,7 @@ def test_stop28_speed_figures_in_the_docs_are_the_committed_runs():
     got = {}
     for tag in ("stop28", "stop28-before"):
         runs = (root / "docs/bench" / f"diagnose-speed-2026-11-26-{tag}.txt").read_text()
-        got[tag] = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", runs, flags=re.M)
+        got[tag] = _totals(runs)
         assert len(got[tag]) == 2
     (a1, a1m, a1x), (a2, a2m, a2x) = got["stop28"]
     (b1, _, b1x), (b2, _, b2x) = got["stop28-before"]
@@ -258,12 +272,11 @@ def test_readme_speed_figures_are_this_releases_committed_runs():
     """The README's current speed figures are the totals scripts/bench_diagnose_speed.py printed in the three runs
     committed in docs/bench/diagnose-speed-2026-11-25.txt, and the verdict matches them (at the goal, not under it
     in every run)."""
-    import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
     runs = (root / "docs/bench/diagnose-speed-2026-11-25.txt").read_text()
-    totals = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", runs, flags=re.M)
+    totals = _totals(runs)
     assert len(totals) == 3
     readme = " ".join((root / "README.md").read_text().split())
     cpu, per4, ratio = (" / ".join(t[k] for t in totals) for k in range(3))
@@ -303,17 +316,15 @@ def test_a_grid_point_whose_columns_are_not_finite_is_skipped_not_a_traceback(rd
 def _speed_runs(stop: str) -> dict:
     """The committed speed runs of a stop, before and after: {"-before" | "": ((CPU s, per 4 minutes, ratio), search
     CPU s, the file's text)}; each run's goal is not met (ratio above 1)."""
-    import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
     got = {}
     for tag in ("-before", ""):
         out = (root / f"docs/bench/diagnose-speed-2026-11-26-{stop}{tag}.txt").read_text()
-        total = re.search(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", out, flags=re.M)
-        search = re.search(r"search \(every candidate, every step\)\s+([\d.]+)", out)
-        got[tag] = (total.groups(), search.group(1), out)
-        assert float(total.group(3)) > 1.0                       # not met on that machine
+        (total,) = _totals(out)
+        got[tag] = (total, _search_s(out), out)
+        assert float(total[2]) > 1.0                             # not met on that machine
     return got
 
 
@@ -376,12 +387,11 @@ def test_readme_speed_figures_of_stop_26_are_its_committed_runs():
 def test_speed_figures_in_the_docs_are_the_committed_run(stop):
     """docs/diagnosis.md's stop-32 and stop-33 speed sentences: the total, per-4-minute figure and ratio that
     scripts/bench_diagnose_speed.py printed in the committed run."""
-    import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
     run = (root / f"docs/bench/diagnose-speed-2026-11-27-{stop}.txt").read_text()
-    (total, per4, ratio), = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", run, flags=re.M)
+    (total, per4, ratio), = _totals(run)
     doc = " ".join((root / "docs/diagnosis.md").read_text().split())
     assert f"takes {total} CPU s, {per4} per 4 minutes, {ratio}x the 30 s goal: not met" in doc
     assert float(ratio) > 1.0
@@ -422,7 +432,6 @@ def test_stop34_speed_figures_are_the_committed_runs():
     """README's and docs/diagnosis.md's stop-34 speed figures: the totals, per-4-minute figures and ratios that
     scripts/bench_diagnose_speed.py printed in the four committed runs (this release and the stop-33 code, in turn),
     each run of the code it is said to be, and the goal not met in any of them."""
-    import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
@@ -431,7 +440,7 @@ def test_stop34_speed_figures_are_the_committed_runs():
         got[tag] = []
         for i in (1, 2):
             run = (root / f"docs/bench/diagnose-speed-2026-11-27-stop34{tag}-{i}.txt").read_text()
-            (total,) = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", run, flags=re.M)
+            (total,) = _totals(run)
             assert ("code: /tmp/wt_head/diagnosis" if tag else "code: /work/main/diagnosis") in run
             assert float(total[2]) > 1.0
             got[tag].append(total)
@@ -451,15 +460,14 @@ def test_stop39_speed_figures_are_the_committed_runs():
     scripts/bench_diagnose_speed.py printed in the two committed runs (the stop-38 code, then this release, in turn),
     each run of the code it is said to be, and the goal not met in either (as test_stop34_speed_figures_... for
     stop 34's)."""
-    import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
     got = {}
     for tag in ("-before", ""):
         out = (root / f"docs/bench/diagnose-speed-2026-11-28-stop39{tag}.txt").read_text()
-        (total,) = re.findall(r"^total CPU ([\d.]+) s .*?session ([\d.]+) CPU s = ([\d.]+)x", out, flags=re.M)
-        search = re.search(r"search \(every candidate, every step\)\s+([\d.]+)", out).group(1)
+        (total,) = _totals(out)
+        search = _search_s(out)
         assert ("code: /tmp/wt39a/diagnosis" if tag else "code: /work/main/diagnosis") in out
         assert float(total[2]) > 1.0
         got[tag] = total + (search,)
