@@ -48,9 +48,21 @@ def filtfilt_rows_kernel(sos: np.ndarray, zi: np.ndarray, x: np.ndarray, padlen:
     """``scipy.signal.sosfiltfilt(sos, x, axis=-1, padlen=padlen)`` (odd extension) of the rows of x (M, L) float64,
     with zi = ``sosfilt_zi(sos).reshape(len(sos), 1, 2)``; padlen < L. Returns (M, L)."""
     M, L = x.shape
+    out = np.empty((M, L))
+    filtfilt_rows_into(sos, zi, x, padlen, np.arange(L), out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def filtfilt_rows_into(sos: np.ndarray, zi: np.ndarray, x: np.ndarray, padlen: int, cols: np.ndarray,
+                       out: np.ndarray) -> None:
+    """:func:`filtfilt_rows_kernel` of x (M, L), written straight into ``out`` (M, len(cols)) at the samples
+    ``cols`` (int, increasing, within 0..L-1) only: the filtered series' columns a caller keeps, without the whole
+    (M, L) result and the copy that picks them (the same numbers). ``out`` may be a view (any strides)."""
+    M, L = x.shape
     S = sos.shape[0]
     Le = L + 2 * padlen
-    out = np.empty((M, L))
+    C = cols.shape[0]
     buf = np.empty((Le, BLOCK))
     z = np.empty((S, 2, BLOCK))
     for i0 in range(0, M, BLOCK):
@@ -67,6 +79,5 @@ def filtfilt_rows_kernel(sos: np.ndarray, zi: np.ndarray, x: np.ndarray, padlen:
         _pass(sos, zi, buf, z, m, True)
         _pass(sos, zi, buf, z, m, False)
         for i in range(m):
-            for k in range(L):
-                out[i0 + i, k] = buf[k + padlen, i]
-    return out
+            for q in range(C):
+                out[i0 + i, q] = buf[cols[q] + padlen, i]

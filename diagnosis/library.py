@@ -673,7 +673,7 @@ class Cogging(Term):
             ripple_columns(np.asarray(chunk, dtype=np.int64), anchor, sin_a, cos_a, s1, c1, fwd, bwd, speed,
                            bool(self.band == "low" and masks), float(np.pi * rd.fs), XT)
             if self.band == "low":
-                XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1), spans)[:, on].reshape(len(chunk), 4, -1)
+                XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1), spans, keep=on).reshape(len(chunk), 4, -1)
             for i, h in enumerate(chunk):
                 yield h, XT[i].T
 
@@ -1051,7 +1051,7 @@ class ThermalDrift(Term):
                 ends = np.cumsum([b - a for a, b in spans])
                 spans, on_in = list(zip(np.r_[0, ends[:-1]], ends)), on[kept]
             refit = FrictionRefit().columns(rd, j, None)[kept, j, :].T       # (2, N): time along the last axis
-            shared = rd.lowpass_series(np.ascontiguousarray(refit), spans)[:, on_in].T  # (L, 2)
+            shared = rd.lowpass_series(np.ascontiguousarray(refit), spans, keep=on_in).T  # (L, 2)
             heat_low = np.empty((len(grid), int(on.sum())))
             per = max(1, self.GRID_BATCH // len(on_in))
             for start in range(0, len(grid), per):
@@ -1059,7 +1059,7 @@ class ThermalDrift(Term):
                 XT = np.empty((len(chunk), len(on_in)))
                 for i, h in enumerate(chunk):
                     XT[i] = self._heat_column(rd, j, h)[kept]        # the thermal lag over the whole recording
-                heat_low[start:start + len(chunk)] = rd.lowpass_series(XT, spans)[:, on_in]
+                heat_low[start:start + len(chunk)] = rd.lowpass_series(XT, spans, keep=on_in)
             store = (heat_low, shared)
             if keep:
                 rd.extra.setdefault("thermal_low", {})[key] = store

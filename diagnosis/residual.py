@@ -35,7 +35,7 @@ from js2spec.errors import Js2Error
 from js2spec.log import read_log
 from js2spec.model import IdentifiedModel
 
-from .filter_kernel import filtfilt_rows_kernel
+from .filter_kernel import filtfilt_rows_into, filtfilt_rows_kernel
 
 
 class DiagnosisError(Js2Error):
@@ -96,18 +96,34 @@ class ResidualData:
         shp = X.shape
         return np.ascontiguousarray(self.lowpass_series(X.reshape(shp[0], -1).T).T).reshape(shp)
 
-    def lowpass_series(self, XT: np.ndarray, runs=None) -> np.ndarray:
+    def lowpass_series(self, XT: np.ndarray, runs=None, keep: np.ndarray | None = None) -> np.ndarray:
         """:meth:`lowpass` of M series given as the rows of XT (M, N), time along the last axis (the layout the
         filter runs along without copying); returns (M, N). NaN counts as 0. ``runs``: the stretches of XT's time
         axis filtered each on its own (default: the recording's runs, ``signals.runs``; :meth:`lowpass_spans`'
-        spans laid end to end)."""
+        spans laid end to end). ``keep`` ((N,) bool): return only those samples, (M, keep.sum()) — the same numbers
+        as ``lowpass_series(XT, runs)[:, keep]``, written there by the filter itself (no (M, N) result to copy
+        from; a kept sample outside every run reads 0)."""
         if not np.isfinite(XT).all():
             XT = np.nan_to_num(XT)
         sos, zi = self._sos(), self._sos_zi()
-        out = np.empty(XT.shape, dtype=XT.dtype)
-        for a, b in (self.signals.runs if runs is None else runs):
-            pad = min(3 * (2 * len(sos) + 1) * 4, b - a - 1)
-            out[:, a:b] = filtfilt_rows(sos, zi, XT[:, a:b], max(pad, 0))
+        spans = self.signals.runs if runs is None else runs
+        if keep is None:
+            out = np.empty(XT.shape, dtype=float)
+            for a, b in spans:
+                pad = min(3 * (2 * len(sos) + 1) * 4, b - a - 1)
+                out[:, a:b] = filtfilt_rows(sos, zi, XT[:, a:b], max(pad, 0))
+            return out
+        keep = np.asarray(keep, dtype=bool)
+        X = np.asarray(XT, dtype=float)
+        out = np.zeros((X.shape[0], int(keep.sum())))      # a kept sample outside every run: 0 (not filtered)
+        at = np.cumsum(keep) - keep          # each kept sample's column in out
+        for a, b in spans:
+            cols = np.flatnonzero(keep[a:b])
+            if not len(cols):
+                continue
+            pad = max(min(3 * (2 * len(sos) + 1) * 4, b - a - 1), 0)
+            o = int(at[a + cols[0]])
+            filtfilt_rows_into(sos, zi, X[:, a:b], pad, cols.astype(np.int64), out[:, o:o + len(cols)])
         return out
 
     def _sos(self) -> np.ndarray:
@@ -290,7 +306,15 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
     # before that filter, as identification's regressor is (Signals.acceleration_unfiltered)
     ddq_motor = sig.acceleration_unfiltered()
     qm, dqm, ddqm = sig.q_motor[rows], sig.dq_motor[rows], ddq_motor[rows]
-    W = build_regressor(arm, qm, dqm, ddqm)           # on the log's torque side
+    # the regressor on every row (on the log's torque side), a bad row's zero: its rigid-body block is then the
+    # search's W_rigid_motor as it is, with no copy of its 10 n columns (about 1 CPU s of a 5-minute, 500 Hz
+    # session, most of it fresh pages); each row is made on its own, so a good row's numbers are as on the good
+    # rows alone
+    if len(rows) == N:
+        W = build_regressor(arm, qm, dqm, ddqm)
+    else:
+        W = build_regressor(arm, *(np.where(good[:, None], x, 0.0) for x in (sig.q_motor, sig.dq_motor, ddq_motor)))
+        W[~good] = 0.0
     pi = standard_vector(arm, motor_inertia=model.motor_inertia, viscous=model.friction_viscous,
                          coulomb=model.friction_coulomb)
     nl = 10 * n
@@ -307,13 +331,12 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
     v_side = dqm @ K.T if side == "joint" else dqm
     fsq = model.friction_sqrt_viscous if model.friction_sqrt_viscous is not None else np.zeros(n)
     sqrt_term = fsq * np.sign(v_side) * np.sqrt(np.abs(v_side))
-    pred_side[rows] = np.einsum("snp,p->sn", W[:, :, nl:], pi[nl:]) + off + sqrt_term
-    fric_side[rows] = np.einsum("snp,p->sn", W[:, :, 11 * n:], pi[11 * n:]) + sqrt_term
-    W_rigid = np.zeros((N, n, nl))
-    W_rigid[rows] = W[:, :, :nl]
+    pred_side[rows] = np.einsum("snp,p->sn", W[:, :, nl:], pi[nl:])[rows] + off + sqrt_term
+    fric_side[rows] = np.einsum("snp,p->sn", W[:, :, 11 * n:], pi[11 * n:])[rows] + sqrt_term
+    W_rigid = W[:, :, :nl]                  # a view: zero on the bad rows
     del W
     rigid_motor = np.full((N, n), np.nan)
-    rigid_motor[rows] = W_rigid[rows] @ pi[:nl]
+    rigid_motor[rows] = (W_rigid @ pi[:nl])[rows]
     rigid_joint = np.full((N, n), np.nan)
     rigid_joint[rows] = rigid_motor[rows] @ np.linalg.inv(K)        # tau_joint = K^-T tau_motor
     # motor i's rest speed: min_speed at the joint, carried to the motor (js2spec.drives, the rule hil_sim's replay

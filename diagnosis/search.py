@@ -186,6 +186,20 @@ class MismatchSearch:
                                          for name in ("fit_rows", "select_rows", "holdout_rows")})
         return cached[1]
 
+    def _float_masks(self, rd: ResidualData, motors: np.ndarray) -> dict:
+        """:meth:`_row_masks` on ``motors`` as 1.0 / 0.0 (N, m), made once per motor set: a gain's sums of squares
+        are then one product sum per part of the rows (``np.einsum`` of the squares with the mask: the same numbers
+        as with the unmasked entries zeroed, without an (N, m) copy per part and candidate)."""
+        key = tuple(int(i) for i in motors)
+        cached = self.__dict__.setdefault("_float_mask_cache", {})
+        if cached.get("rd") is not rd:
+            cached.clear()
+            cached["rd"] = rd
+        if key not in cached:
+            cached[key] = {name: np.ascontiguousarray(m[:, motors], dtype=float)
+                           for name, m in self._row_masks(rd).items()}
+        return cached[key]
+
     def _stats(self, rd: ResidualData, band: str, r: np.ndarray, w: np.ndarray) -> dict:
         """What every candidate's gains share, made once per residual (the ladder changes it only when it accepts a
         term): the weighted residual, its squared sum per motor on each part of the rows, its report-rows RMS."""
@@ -247,10 +261,11 @@ class MismatchSearch:
         (``Term.search_caches``: ThermalDrift's filtered heat columns) keeps that instead, charged to the same
         budget."""
         b = rw[:, motors][sel_fit]
+        bb = float(b @ b)
         hs = term.grid(rd, j) if grid is None else grid
         gram = term.grid_gram(rd, j, hs, sel_fit, w[motors], rw[:, motors])
         if gram is not None:      # the term's normal equations without its columns: SSE = b'b - 2 c'A'b + c'G c
-            bb, best = float(b @ b), None
+            best = None
             for h, G, Ab in gram:
                 if not (np.all(np.isfinite(G)) and np.all(np.isfinite(Ab))):
                     continue          # a grid point whose columns are not finite (a simulated link that diverged)
@@ -275,17 +290,17 @@ class MismatchSearch:
             items = []
             for h, X in grid_columns:
                 A = X * w_sub
-                if not np.any(A):
-                    continue
                 G = A.T @ A                      # normal equations on the (k x k) Gram matrix: few columns, many rows
                 if not np.all(np.isfinite(G)):
                     continue                     # columns not finite (a simulated link that diverged): G shows it
+                if not np.any(np.diagonal(G)):
+                    continue                     # every column zero on these rows (G's diagonal: their sums of squares)
                 items.append((h, A, G))
                 if keep and len(items) == 1:
                     keep = self._cache_used + A.nbytes * len(hs) <= self.CACHE_BYTES
                     self._cache_used += A.nbytes * len(hs) if keep else 0
                 if not keep:
-                    items[-1] = self._solve(items[-1], b)
+                    items[-1] = self._solve(items[-1], b, bb)
             if keep:
                 self._columns_cache[key] = items
             else:
@@ -293,16 +308,22 @@ class MismatchSearch:
                 return self._finish(rd, term, j, motors, best, len(b))
         best = None
         for it in items:
-            solved = self._solve(it, b)
+            solved = self._solve(it, b, bb)
             if best is None or solved[0] < best[0]:
                 best = solved
         return self._finish(rd, term, j, motors, best, len(b))
 
     @staticmethod
-    def _solve(item, b):
+    def _solve(item, b, bb: float):
+        """(SSE, h, coefficients, G) of one grid point's weighted columns A (with their Gram matrix G) against b,
+        by the normal equations: SSE = b'b - 2 c'A'b + c'G c, one pass over A (A'b) where the residual b - A c took
+        three. Equal to the residual's sum of squares to rounding (on the speed bench's session at most a relative
+        5e-12, where a fit leaves 0.1 % of b'b); a grid point's SSE is only compared with the others' and scales
+        the coefficients' std. ``bb`` = b'b."""
         h, A, G = item
-        coef = np.linalg.lstsq(G, A.T @ b, rcond=None)[0]
-        return float(np.sum((b - A @ coef) ** 2)), h, coef, G
+        Ab = A.T @ b
+        coef = np.linalg.lstsq(G, Ab, rcond=None)[0]
+        return max(bb - 2.0 * float(coef @ Ab) + float(coef @ G @ coef), 0.0), h, coef, G
 
     @staticmethod
     def _finish(rd, term, j, motors, best, rows):
@@ -348,13 +369,20 @@ class MismatchSearch:
             return None
         h, coef, std, contrib = fitted_grid
         # gains: only the term's motors change; sums per motor, the others' from the shared statistics
-        new_w = (r[:, motors] - contrib) * w[motors]                  # (N, m)
+        left = r[:, motors] - contrib                                 # (N, m) what the term leaves
+        new_w = left * w[motors]
         old_w = rw[:, motors]
 
         def sums(x, m):
             return np.einsum("ij,ij->j", x, np.where(m, x, 0.0))
 
-        s1 = {name: sums(new_w, m[:, motors]) for name, m in rows.items()}
+        fm = self._float_masks(rd, motors)
+        sq_new = new_w * new_w
+        s1 = {name: np.einsum("ij,ij->j", sq_new, fm[name]) for name in rows}
+        if tuple(coef_rows) == ("fit_rows",):     # sel_fit is the fit rows' mask
+            fit_old, fit_new = np.einsum("ij,ij->j", old_w * old_w, fm["fit_rows"]), s1["fit_rows"]
+        else:
+            fit_old, fit_new = sums(old_w, sel_fit), sums(new_w, sel_fit)
 
         def gain(s0, s1_):
             s0, s1_ = float(np.sum(s0)), float(np.sum(s1_))
@@ -365,7 +393,7 @@ class MismatchSearch:
         s_own = st["s0"]["select_rows"][j]
         s_own1 = s1["select_rows"][list(motors).index(j)] if j in motors else s_own
         rms_after = st["rms"].copy()
-        rms_after[motors] = _rms(r[:, motors] - contrib, rows["holdout_rows"][:, motors])
+        rms_after[motors] = _rms(left, rows["holdout_rows"][:, motors])
         eff, summary, ok, why = term.effect(rd, j, h, coef, std)
         fitted = Fitted(kind=term.kind, joint=j, hyper=h, coef=coef, coef_std=std, effect=eff, summary=summary,
                         plausible=bool(ok), why_not=why)
@@ -374,7 +402,7 @@ class MismatchSearch:
         # gains are motor j's alone (over six motors, five of which it barely moves, a 48 % cut on its own motor
         # reads 8 %)
         judged = [list(motors).index(j)] if term.own_motor and j in motors else slice(None)
-        return Scored(fitted=fitted, fit_gain=gain(sums(old_w, sel_fit)[judged], sums(new_w, sel_fit)[judged]),
+        return Scored(fitted=fitted, fit_gain=gain(fit_old[judged], fit_new[judged]),
                       select_gain=gain(st["s0"]["select_rows"][motors][judged], s1["select_rows"][judged]),
                       select_gain_all=gain(st["s0"]["select_rows"], s_all),
                       select_gain_capped=gain(st["share"] * st["s0"]["select_rows"], st["share"] * s_all),
@@ -524,7 +552,7 @@ class MismatchSearch:
         self.final_ = {band: {"fit": _rms(r, m_fit), "select": _rms(r, m_sel), "holdout": _rms(r, m_rep)}
                        for band, r in res.items()}
         # arrays of the recording's size
-        for cache in ("_fits", "_stats_cache", "_masks", "_columns_cache", "_stores", "_order"):
+        for cache in ("_fits", "_stats_cache", "_masks", "_float_mask_cache", "_columns_cache", "_stores", "_order"):
             self.__dict__.pop(cache, None)
         for cache in {key for t in self.library for key in t.search_caches + t.step_caches}:   # the terms' stores
             rd.extra.pop(cache, None)

@@ -1,0 +1,137 @@
+"""Stop 40's shortcuts in the search give the search's numbers: a grid point's SSE from its normal equations
+(``MismatchSearch._solve``), the gains' sums of squares from 1.0 / 0.0 masks (``MismatchSearch._float_masks``),
+the rigid-body regressor kept as a view of the whole regressor (``residual_data``), and the torque band's filter
+writing only the samples a caller keeps (``ResidualData.lowpass_series(..., keep=)``)."""
+import json
+
+import numpy as np
+import pytest
+
+from fixtures_diag import clean_model, recording
+
+
+def _explicit(A, b, coef):
+    return float(np.sum((b - A @ coef) ** 2))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_normal_equations_sse_is_the_residuals(seed):
+    """Columns of very different scales. Where a fit leaves 0.1 % of b'b or more (the least the speed bench's search
+    met was 0.1 %) the SSE is the residual's sum of squares to 1e-9 relative; where it leaves almost nothing the
+    difference is rounding of b'b (at most 1e-12 of it). The coefficients are lstsq's on the Gram matrix."""
+    from diagnosis.search import MismatchSearch
+
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(5000, 4)) * np.array([1.0, 1e-3, 30.0, 0.2])
+    for share in (1e-3, 0.5, 1e-9):
+        signal = A @ rng.normal(size=4)
+        noise = rng.normal(size=5000)
+        noise *= np.sqrt(share / (1 - share) * float(signal @ signal) / float(noise @ noise))
+        b = signal + noise
+        bb = float(b @ b)
+        G = A.T @ A
+        sse, h, coef, G_out = MismatchSearch._solve(("h", A, G), b, bb)
+        assert h == "h" and G_out is G
+        assert np.array_equal(coef, np.linalg.lstsq(G, A.T @ b, rcond=None)[0])
+        want = _explicit(A, b, coef)
+        assert want / bb == pytest.approx(share, rel=0.2)
+        if share >= 1e-3:
+            assert sse == pytest.approx(want, rel=1e-9)
+        assert abs(sse - want) <= 1e-12 * bb
+
+
+def test_normal_equations_sse_of_an_exact_fit_is_not_negative():
+    """b in the columns' span: rounding may make b'b - 2 c'A'b + c'G c slightly negative; the SSE is held at 0."""
+    from diagnosis.search import MismatchSearch
+
+    rng = np.random.default_rng(7)
+    A = rng.normal(size=(300, 3))
+    b = A @ np.array([1.0, -2.0, 0.5])
+    sse = MismatchSearch._solve((0, A, A.T @ A), b, float(b @ b))[0]
+    assert 0.0 <= sse <= 1e-20 * float(b @ b) + 1e-24
+
+
+@pytest.fixture(scope="module")
+def rd():
+    from diagnosis.residual import residual_data
+    from js2spec.log import read_log
+    from js2spec.model import load_model
+
+    return residual_data(load_model(clean_model()), read_log(recording(json.dumps(
+        [{"kind": "payload_change", "joints": [5], "mass": 0.3, "com": [0.05, 0.0, 0.0]}]))))
+
+
+def test_float_mask_sums_are_the_masked_sums(rd):
+    """The gains' sums of squares per motor, from the squares and the float masks, are the sums over the masked rows
+    (the einsum of x with x zeroed off the mask, as before), on every part of the rows and on one motor or all."""
+    from diagnosis.search import MismatchSearch
+
+    search = MismatchSearch()
+    rows = search._row_masks(rd)
+    x = np.random.default_rng(0).normal(size=(len(rd.t), rd.n))
+    for motors in (np.arange(rd.n), np.array([2]), np.array([0, 4])):
+        fm = search._float_masks(rd, motors)
+        assert search._float_masks(rd, motors) is fm             # made once per motor set
+        xs = x[:, motors]
+        for name, m in rows.items():
+            want = np.einsum("ij,ij->j", xs, np.where(m[:, motors], xs, 0.0))
+            got = np.einsum("ij,ij->j", xs * xs, fm[name])
+            np.testing.assert_allclose(got, want, rtol=1e-13, atol=0)
+            direct = np.array([np.sum(xs[m[:, i], k] ** 2) for k, i in enumerate(motors)])
+            np.testing.assert_allclose(got, direct, rtol=1e-12, atol=0)
+
+
+def test_rigid_regressor_view_is_the_copy(rd):
+    """W_rigid_motor is a view of the regressor's rigid block (no copy of it), also on a recording with bad rows
+    (torque NaN on 50 samples): zeros there, and away from them the numbers of the clean recording, with the same
+    rigid torque (NaN on the bad rows)."""
+    from diagnosis.residual import residual_data
+    from js2spec.log import read_log
+    from js2spec.model import load_model
+
+    W = rd.W_rigid_motor
+    assert W.shape == (len(rd.t), rd.n, 10 * rd.n)
+    assert W.base is not None and not W.flags.c_contiguous          # the view, not a copy
+    assert np.all(np.isfinite(W))
+    log = read_log(recording(json.dumps([{"kind": "payload_change", "joints": [5], "mass": 0.3,
+                                          "com": [0.05, 0.0, 0.0]}])))
+    bad = np.zeros(len(log.feedback.t), dtype=bool)
+    bad[1000:1050] = True
+    log.feedback.torque[bad, 2] = np.nan
+    rd_bad = residual_data(load_model(clean_model()), log)
+    assert rd_bad.W_rigid_motor.base is not None and not rd_bad.W_rigid_motor.flags.c_contiguous
+    # the rows well after the gap (the recording splits into two runs there, each filtered on its own: the run
+    # before it reads differently to its start)
+    far = np.arange(len(bad)) >= 1550
+    assert np.array_equal(rd_bad.W_rigid_motor[far], W[far])
+    assert not np.any(rd_bad.W_rigid_motor[bad])
+    assert np.array_equal(rd_bad.tau_rigid_motor[far], rd.tau_rigid_motor[far])
+    assert np.all(np.isnan(rd_bad.tau_rigid_motor[bad]))
+
+
+def test_lowpass_series_keep_is_the_picked_columns(rd):
+    """``lowpass_series(XT, runs, keep=rows)`` is ``lowpass_series(XT, runs)[:, rows]`` to the bit: over the
+    recording's runs and over ``lowpass_spans``' stretches laid end to end (as the cogging and thermal columns use
+    it), with strided input; a kept sample outside every run reads 0."""
+    rng = np.random.default_rng(3)
+    N = len(rd.t)
+    X = rng.normal(size=(11, N))
+    rows = rng.random(N) < 0.4
+    rows[: N // 3] = False
+    assert np.array_equal(rd.lowpass_series(X, keep=rows), rd.lowpass_series(X)[:, rows])
+    Xs = np.asfortranarray(X)                       # rows of XT strided
+    assert np.array_equal(rd.lowpass_series(Xs, keep=rows), rd.lowpass_series(X)[:, rows])
+    spans = rd.lowpass_spans(rows)
+    assert spans is not None
+    kept = np.concatenate([np.arange(a, b) for a, b in spans])
+    ends = np.cumsum([b - a for a, b in spans])
+    laid = list(zip(np.r_[0, ends[:-1]], ends))
+    got = rd.lowpass_series(X[:, kept], laid, keep=rows[kept])
+    assert np.array_equal(got, rd.lowpass_series(X[:, kept], laid)[:, rows[kept]])
+    # a run that stops short of the end: the sample after it is kept and reads 0
+    short = [(0, N - 10)]
+    last = np.zeros(N, dtype=bool)
+    last[[5, N - 11, N - 3]] = True
+    got = rd.lowpass_series(X, short, keep=last)
+    assert np.array_equal(got[:, :2], rd.lowpass_series(X[:, : N - 10], [(0, N - 10)])[:, [5, N - 11]])
+    assert not np.any(got[:, 2])
