@@ -45,7 +45,7 @@ from scipy.stats import chi2
 from identification.base import base_parameters
 
 from .link_kernel import link_torques
-from .ripple_kernel import ripple_columns
+from .ripple_kernel import ripple_columns, ripple_dots
 from .residual import ResidualData
 
 
@@ -657,25 +657,32 @@ class Cogging(Term):
         else:
             speed, masks = np.zeros(len(th)), False
         s1, c1 = np.sin(th), np.cos(th)
-        per = max(1, self.GRID_BATCH // (4 * len(th)))
-        for start in range(0, len(grid), per):
-            chunk = grid[start:start + per]
+        for chunk, anchor, sin_a, cos_a in self._batches(grid, th):
             XT = np.empty((len(chunk), 4, len(th)))        # time along the last axis: the filter's layout
-            # sin, cos of (p + 1) theta by the angle-addition rule from p theta's (a few ulp from np.sin), np.sin
-            # anew at the batch's start, every RECUR period counts and after a gap in the grid; the columns, the
-            # speed mask (:meth:`sampled`) and the direction products in one compiled pass
+            # the columns, the speed mask (:meth:`sampled`) and the direction products in one compiled pass
             # (:func:`diagnosis.ripple_kernel.ripple_columns`: the same numbers as the numpy steps)
-            anchor = np.full(len(chunk), -1, dtype=np.int64)
-            fresh = [i for i, h in enumerate(chunk) if i % self.RECUR == 0 or h != chunk[i - 1] + 1]
-            anchor[fresh] = np.arange(len(fresh))
-            sin_a = np.stack([np.sin(chunk[i] * th) for i in fresh])
-            cos_a = np.stack([np.cos(chunk[i] * th) for i in fresh])
             ripple_columns(np.asarray(chunk, dtype=np.int64), anchor, sin_a, cos_a, s1, c1, fwd, bwd, speed,
                            bool(self.band == "low" and masks), float(np.pi * rd.fs), XT)
             if self.band == "low":
                 XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1), spans, keep=on).reshape(len(chunk), 4, -1)
             for i, h in enumerate(chunk):
                 yield h, XT[i].T
+
+    def _batches(self, grid: list, th: np.ndarray):
+        """The grid's period counts in batches of ``GRID_BATCH`` elements' columns, each with what the angle-addition
+        steps start from: yields (chunk, anchor, sin_a, cos_a). sin, cos of (p + 1) theta come by the angle-addition
+        rule from p theta's (a few ulp from np.sin); np.sin anew (the rows of sin_a, cos_a; ``anchor[i]`` >= 0
+        names the row of the chunk's i-th period count) at the batch's start, every ``RECUR`` period counts and after
+        a gap in the grid."""
+        per = max(1, self.GRID_BATCH // (4 * len(th)))
+        for start in range(0, len(grid), per):
+            chunk = grid[start:start + per]
+            anchor = np.full(len(chunk), -1, dtype=np.int64)
+            fresh = [i for i, h in enumerate(chunk) if i % self.RECUR == 0 or h != chunk[i - 1] + 1]
+            anchor[fresh] = np.arange(len(fresh))
+            sin_a = np.stack([np.sin(chunk[i] * th) for i in fresh])
+            cos_a = np.stack([np.cos(chunk[i] * th) for i in fresh])
+            yield chunk, anchor, sin_a, cos_a
 
     AGREE = 0.5         # the two directions' ripples (phasors) may differ by at most this share of their mean
     # (stop 37 measured a looser rule: phases within 0.6 rad and amplitudes within 2:1, the loop's lag rotating the
@@ -706,6 +713,49 @@ class CoggingWide(Cogging):
     """:class:`Cogging` compared unfiltered: a drive whose own loop is fast puts the ripple into the current at
     ripple frequencies above the torque's band too."""
     band = "wide"
+    step_caches = ("cogging_wide_gram",)
+
+    def grid_gram(self, rd, j, grid, rows, w, b):
+        """:meth:`Term.grid_gram` for the ladder's later steps. The Gram matrices do not change from step to step
+        (the columns and weights do not; only the residual does), so they are kept (``rd.extra``, a few numbers per
+        period count) from the first call, which forms them from :meth:`grid_columns` as the search would (the same
+        numbers); a later call forms only A^T b, without the columns, in one compiled pass
+        (:func:`diagnosis.ripple_kernel.ripple_dots`: the same column values, summed in row order, so equal to the
+        columns' A^T b to rounding). Unfiltered on one motor only."""
+        if type(self).grid_columns is not Cogging.grid_columns or rows.shape[1] != 1:
+            return None
+        grid = list(grid)
+        on = rows[:, 0]
+        wj = float(w[0])
+        key = (j, hashlib.blake2b(np.packbits(on).tobytes() + repr(grid).encode() + np.float64(wj).tobytes(),
+                                  digest_size=16).digest())
+        store = rd.extra.setdefault("cogging_wide_gram", {})
+        b_on = np.ascontiguousarray(b[on, 0])
+        if key not in store:
+            grams, first = {}, []
+            for h, X in self.grid_columns(rd, j, grid, rows):
+                A = X * wj
+                G = A.T @ A
+                if np.all(np.isfinite(G)) and np.any(np.diagonal(G)):
+                    grams[h] = G
+                    first.append((h, G, A.T @ b_on))
+            store[key] = grams
+            return iter(first)
+        grams = store[key]
+        th = np.nan_to_num(rd.q_motor[:, j])[on]
+        fwd = (_moving(rd, j)[on] >= 0).astype(float)
+        sliding = _sliding(rd, j)[on]
+        bwd, fwd = (1 - fwd) * sliding, fwd * sliding
+        s1, c1 = np.sin(th), np.cos(th)
+
+        def gen():
+            for chunk, anchor, sin_a, cos_a in self._batches(grid, th):
+                dots = np.empty((len(chunk), 4))
+                ripple_dots(np.asarray(chunk, dtype=np.int64), anchor, sin_a, cos_a, s1, c1, fwd, bwd, b_on, dots)
+                for i, h in enumerate(chunk):
+                    if h in grams:
+                        yield h, grams[h], dots[i] * wj
+        return gen()
 
 
 class CoggingPassBand(CoggingWide):

@@ -50,3 +50,35 @@ def ripple_columns(periods: np.ndarray, anchor: np.ndarray, sin_anchor: np.ndarr
             out[i, 1, t] = c * f
             out[i, 2, t] = s * b
             out[i, 3, t] = c * b
+
+
+@njit(cache=True, nogil=True)
+def ripple_dots(periods: np.ndarray, anchor: np.ndarray, sin_anchor: np.ndarray, cos_anchor: np.ndarray,
+                s1: np.ndarray, c1: np.ndarray, fwd: np.ndarray, bwd: np.ndarray, b: np.ndarray,
+                out: np.ndarray) -> None:
+    """out (P, 4) = the sums over the rows of :func:`ripple_columns`' four columns (unmasked) times b (L,): each
+    period count's X^T b without its columns (the sines by the same anchors and angle-addition steps, so the same
+    column values; the sums in row order, so equal to ``X.T @ b`` to rounding)."""
+    P = periods.shape[0]
+    L = s1.shape[0]
+    for i in range(P):
+        for k in range(4):
+            out[i, k] = 0.0
+    for t in range(L):
+        s = 0.0
+        c = 0.0
+        fb = fwd[t] * b[t]
+        bb = bwd[t] * b[t]
+        for i in range(P):
+            a = anchor[i]
+            if a >= 0:
+                s = sin_anchor[a, t]
+                c = cos_anchor[a, t]
+            else:
+                s_next = s * c1[t] + c * s1[t]
+                c = c * c1[t] - s * s1[t]
+                s = s_next
+            out[i, 0] += s * fb
+            out[i, 1] += c * fb
+            out[i, 2] += s * bb
+            out[i, 3] += c * bb

@@ -135,3 +135,71 @@ def test_lowpass_series_keep_is_the_picked_columns(rd):
     got = rd.lowpass_series(X, short, keep=last)
     assert np.array_equal(got[:, :2], rd.lowpass_series(X[:, : N - 10], [(0, N - 10)])[:, [5, N - 11]])
     assert not np.any(got[:, 2])
+
+
+def test_ripple_dots_are_the_columns_times_b():
+    """``ripple_dots`` (X^T b without the columns) against ``ripple_columns``' columns times b, with the anchors
+    ``Cogging._batches`` makes (runs, gaps, more than RECUR period counts in a row), to 1e-12 of the sums' scale."""
+    from diagnosis.library import Cogging
+    from diagnosis.ripple_kernel import ripple_columns, ripple_dots
+
+    rng = np.random.default_rng(11)
+    L = 4000
+    th = np.cumsum(rng.normal(0.0, 0.05, L)) + 40.0
+    sliding = (rng.uniform(size=L) > 0.1).astype(float)
+    forward = (rng.uniform(size=L) > 0.5).astype(float)
+    fwd, bwd = forward * sliding, (1 - forward) * sliding
+    b = rng.normal(size=L)
+    grid = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 14, 15, 40, 41, 96]
+    (chunk, anchor, sin_a, cos_a), = list(Cogging()._batches(grid, th))
+    args = (np.asarray(chunk, dtype=np.int64), anchor, sin_a, cos_a, np.sin(th), np.cos(th), fwd, bwd)
+    X = np.empty((len(chunk), 4, L))
+    ripple_columns(*args, np.zeros(L), False, 1.0, X)
+    got = np.empty((len(chunk), 4))
+    ripple_dots(*args, b, got)
+    want = X @ b
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.sqrt(L))
+    assert np.abs(want).max() > 1.0
+
+
+def test_wide_cogging_gram_is_the_columns(rd):
+    """``CoggingWide.grid_gram``: at its first call the normal equations the search forms from the columns (the
+    same numbers), kept; at a later call (another residual) the same Gram matrices and A^T b to rounding; a change
+    of rows is a new store."""
+    from diagnosis.library import CoggingWide
+
+    term, j = CoggingWide(), 3
+    rows = (rd.mask & rd.fit_rows[:, None])[:, [j]]                 # the search's fit rows on motor j
+    grid = term.grid(rd, j)
+    assert len(grid) > 10
+    rng = np.random.default_rng(5)
+    w = np.array([0.7])
+    b1, b2 = rng.normal(size=(len(rd.t), 1)), rng.normal(size=(len(rd.t), 1))
+    rd.extra.pop("cogging_wide_gram", None)
+
+    def by_columns(b):
+        out = {}
+        for h, X in term.grid_columns(rd, j, grid, rows):
+            A = X * w[0]
+            G = A.T @ A
+            if np.any(np.diagonal(G)):
+                out[h] = (G, A.T @ b[rows[:, 0], 0])
+        return out
+
+    first = list(term.grid_gram(rd, j, grid, rows, w, b1))
+    want1 = by_columns(b1)
+    assert [h for h, _, _ in first] == list(want1)
+    for h, G, Ab in first:
+        assert np.array_equal(G, want1[h][0]) and np.array_equal(Ab, want1[h][1])
+    later = list(term.grid_gram(rd, j, grid, rows, w, b2))
+    want2 = by_columns(b2)
+    assert [h for h, _, _ in later] == list(want2)
+    for h, G, Ab in later:
+        assert np.array_equal(G, want2[h][0])
+        np.testing.assert_allclose(Ab, want2[h][1], rtol=0, atol=1e-11 * np.abs(want2[h][1]).max())
+    other = rows.copy()
+    other[: len(other) // 2] = False
+    assert len(rd.extra["cogging_wide_gram"]) == 1
+    list(term.grid_gram(rd, j, grid, other, w, b1))
+    assert len(rd.extra["cogging_wide_gram"]) == 2
+    rd.extra.pop("cogging_wide_gram", None)
