@@ -480,3 +480,39 @@ def test_stop39_speed_figures_are_the_committed_runs():
     doc = " ".join((root / "docs/diagnosis.md").read_text().split())
     assert (f"not met: {a_cpu} CPU s, {a_per4} per 4 minutes ({a_x}x the goal); the stop-38 code {b_cpu}, {b_per4} "
             f"({b_x}x)**") in doc
+
+
+def test_stop40_speed_figures_are_the_committed_runs():
+    """README's and docs/diagnosis.md's stop-40 speed figures: the totals, per-4-minute figures, ratios and search
+    seconds that scripts/bench_diagnose_speed.py printed in the six committed runs (the stop-39 code and this
+    release, in turn), each run of the code it is said to be; the goal met in all three of this release's runs and
+    in none of the stop-39 code's."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    got = {}
+    for tag in ("-before", ""):
+        got[tag] = []
+        for i in (1, 2, 3):
+            out = (root / f"docs/bench/diagnose-speed-2026-11-28-stop40{tag}-{i}.txt").read_text()
+            (total,) = _totals(out)
+            assert ("code: /tmp/wt40base/diagnosis" if tag else "code: /work/main/diagnosis") in out
+            assert (float(total[2]) > 1.0) == bool(tag)
+            assert float(total[1]) == pytest.approx(float(total[0]) * 240.0 / (5.32 * 60), rel=0.01)
+            got[tag].append(total + (_search_s(out),))
+
+    def cols(runs, k):
+        return " / ".join(r[k] for r in runs)
+
+    a, b = got[""], got["-before"]
+    readme = _readme_flat()
+    assert (f"**{cols(a, 0)} CPU s, per 4 minutes {cols(a, 1)} ({cols(a, 2)}x the 30 s goal); the stop-39 code in the "
+            f"same session {cols(b, 0)} CPU s, per 4 minutes {cols(b, 1)} ({cols(b, 2)}x): met in all three runs**"
+            ) in readme
+    assert f"the search {cols(b, 3)} -> {cols(a, 3)} s" in readme
+    assert (f"- Speed: {cols(a, 2)}x the 30 s goal (stop 40's three runs; the stop-39 code {cols(b, 2)}x in the same "
+            "session)") in readme
+    doc = " ".join((root / "docs/diagnosis.md").read_text().split())
+    assert (f"**Speed (item 9), met: {cols(a, 0)} CPU s, {cols(a, 1)} per 4 minutes ({cols(a, 2)}x the goal); the "
+            f"stop-39 code {cols(b, 0)}, {cols(b, 1)} ({cols(b, 2)}x)**") in doc
+    assert f"the search {cols(b, 3)} -> {cols(a, 3)} s" in doc
