@@ -569,6 +569,7 @@ class Cogging(Term):
     band); above it the ripple turns into velocity ripple instead (see :class:`CoggingWide` for drives whose loop
     is fast)."""
     kind, hyper_name, band = "cogging", "periods_per_rev", "low"
+    step_caches = ("cogging_gram",)     # the Gram matrices of each grid, kept across the ladder's steps (grid_gram)
 
     MIN_PERIODS = 5     # ripple periods the motor must sweep within the recording to tell ripple from pose
     MAX_PERIODS = 96    # and at most this many per revolution (or what the encoder resolves: 4 counts per period)
@@ -632,13 +633,33 @@ class Cogging(Term):
         if rows.shape[1] != 1:
             yield from super().grid_columns(rd, j, grid, rows)
             return
-        on = rows[:, 0]
+        grid = list(grid)
+        th, fwd, bwd, speed, masked, spans, on = self._inputs(rd, j, grid, rows[:, 0])
+        s1, c1 = np.sin(th), np.cos(th)
+        for chunk, anchor, sin_a, cos_a in self._batches(grid, th):
+            XT = np.empty((len(chunk), 4, len(th)))        # time along the last axis: the filter's layout
+            # the columns, the speed mask (:meth:`sampled`) and the direction products in one compiled pass
+            # (:func:`diagnosis.ripple_kernel.ripple_columns`: the same numbers as the numpy steps)
+            ripple_columns(np.asarray(chunk, dtype=np.int64), anchor, sin_a, cos_a, s1, c1, fwd, bwd, speed,
+                           masked, float(np.pi * rd.fs), XT)
+            if self.band == "low":
+                XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1), spans, keep=on).reshape(len(chunk), 4, -1)
+            for i, h in enumerate(chunk):
+                yield h, XT[i].T
+
+    def _inputs(self, rd, j, grid: list, on: np.ndarray):
+        """What :meth:`grid_columns` makes motor j's columns from on the rows ``on`` (N,): (th, fwd, bwd, speed,
+        masked, spans, on). Unfiltered: the rows themselves (spans None, on all True). In the torque band: the
+        stretches around the rows the filter needs (:meth:`ResidualData.lowpass_spans`), laid end to end (spans in
+        that layout, None for the whole recording's runs), ``on`` the rows among them, ``masked`` whether some period
+        count of the grid skips rows (:meth:`sampled`)."""
         th = np.nan_to_num(rd.q_motor[:, j])
         fwd = (_moving(rd, j) >= 0).astype(float)
         sliding = _sliding(rd, j)
-        spans = None
+        spans, keep = None, slice(None)
         if self.band != "low":
             th, fwd, sliding = th[on], fwd[on], sliding[on]
+            on = np.ones(len(th), dtype=bool)
         else:
             spans = rd.lowpass_spans(on)
             if spans is not None:         # the stretches laid end to end
@@ -648,25 +669,56 @@ class Cogging(Term):
                 spans = list(zip(np.r_[0, ends[:-1]], ends))
         bwd = (1 - fwd) * sliding
         fwd = fwd * sliding
-        grid = list(grid)
         if self.band == "low" and grid:        # :meth:`sampled`, on the same rows
-            speed = np.abs(_moving(rd, j))
-            if spans is not None:
-                speed = speed[keep]
-            masks = not self._under(speed, max(grid), rd.fs).all()   # some period count of the grid skips rows
+            speed = np.abs(_moving(rd, j))[keep]
+            masked = bool(not self._under(speed, max(grid), rd.fs).all())
         else:
-            speed, masks = np.zeros(len(th)), False
+            speed, masked = np.zeros(len(th)), False
+        return th, fwd, bwd, speed, masked, spans, on
+
+    def grid_gram(self, rd, j, grid, rows, w, b):
+        """:meth:`Term.grid_gram` for the ladder's later steps. The Gram matrices do not change from step to step
+        (the columns and weights do not; only the residual does), so they are kept (``rd.extra``, a few numbers per
+        period count) from the first call, which forms them from :meth:`grid_columns` as the search would (the same
+        numbers). A later call forms only A^T b, without the columns: unfiltered, the columns' dot products with b
+        in one compiled pass (:func:`diagnosis.ripple_kernel.ripple_dots`: the same column values, summed in row
+        order); in the torque band, with b filtered backwards once (:meth:`ResidualData.lowpass_adjoint`: X_f^T b =
+        X^T F^T b) instead of filtering the 4 columns of every period count, and without keeping the filtered columns
+        from step to step (the search's column cache: 1-2 GiB of a long session). Equal to the columns' A^T b to
+        rounding. One motor only."""
+        if type(self).grid_columns is not Cogging.grid_columns or rows.shape[1] != 1:
+            return None
+        grid = list(grid)
+        on = rows[:, 0]
+        wj = float(w[0])
+        key = (j, self.band, hashlib.blake2b(np.packbits(on).tobytes() + repr(grid).encode()
+                                             + np.float64(wj).tobytes(), digest_size=16).digest())
+        store = rd.extra.setdefault("cogging_gram", {})
+        b_on = np.ascontiguousarray(b[on, 0])
+        if key not in store:
+            grams, first = {}, []
+            for h, X in self.grid_columns(rd, j, grid, rows):
+                A = X * wj
+                G = A.T @ A
+                if np.all(np.isfinite(G)) and np.any(np.diagonal(G)):
+                    grams[h] = G
+                    first.append((h, G, A.T @ b_on))
+            store[key] = grams
+            return iter(first)
+        grams = store[key]
+        th, fwd, bwd, speed, masked, spans, on_in = self._inputs(rd, j, grid, on)
+        v = b_on if self.band != "low" else rd.lowpass_adjoint(b_on, spans, keep=on_in)
         s1, c1 = np.sin(th), np.cos(th)
-        for chunk, anchor, sin_a, cos_a in self._batches(grid, th):
-            XT = np.empty((len(chunk), 4, len(th)))        # time along the last axis: the filter's layout
-            # the columns, the speed mask (:meth:`sampled`) and the direction products in one compiled pass
-            # (:func:`diagnosis.ripple_kernel.ripple_columns`: the same numbers as the numpy steps)
-            ripple_columns(np.asarray(chunk, dtype=np.int64), anchor, sin_a, cos_a, s1, c1, fwd, bwd, speed,
-                           bool(self.band == "low" and masks), float(np.pi * rd.fs), XT)
-            if self.band == "low":
-                XT = rd.lowpass_series(XT.reshape(4 * len(chunk), -1), spans, keep=on).reshape(len(chunk), 4, -1)
-            for i, h in enumerate(chunk):
-                yield h, XT[i].T
+
+        def gen():
+            for chunk, anchor, sin_a, cos_a in self._batches(grid, th):
+                dots = np.empty((len(chunk), 4))
+                ripple_dots(np.asarray(chunk, dtype=np.int64), anchor, sin_a, cos_a, s1, c1, fwd, bwd, speed,
+                            masked, float(np.pi * rd.fs), v, dots)
+                for i, h in enumerate(chunk):
+                    if h in grams:
+                        yield h, grams[h], dots[i] * wj
+        return gen()
 
     def _batches(self, grid: list, th: np.ndarray):
         """The grid's period counts in batches of ``GRID_BATCH`` elements' columns, each with what the angle-addition
@@ -713,49 +765,6 @@ class CoggingWide(Cogging):
     """:class:`Cogging` compared unfiltered: a drive whose own loop is fast puts the ripple into the current at
     ripple frequencies above the torque's band too."""
     band = "wide"
-    step_caches = ("cogging_wide_gram",)
-
-    def grid_gram(self, rd, j, grid, rows, w, b):
-        """:meth:`Term.grid_gram` for the ladder's later steps. The Gram matrices do not change from step to step
-        (the columns and weights do not; only the residual does), so they are kept (``rd.extra``, a few numbers per
-        period count) from the first call, which forms them from :meth:`grid_columns` as the search would (the same
-        numbers); a later call forms only A^T b, without the columns, in one compiled pass
-        (:func:`diagnosis.ripple_kernel.ripple_dots`: the same column values, summed in row order, so equal to the
-        columns' A^T b to rounding). Unfiltered on one motor only."""
-        if type(self).grid_columns is not Cogging.grid_columns or rows.shape[1] != 1:
-            return None
-        grid = list(grid)
-        on = rows[:, 0]
-        wj = float(w[0])
-        key = (j, hashlib.blake2b(np.packbits(on).tobytes() + repr(grid).encode() + np.float64(wj).tobytes(),
-                                  digest_size=16).digest())
-        store = rd.extra.setdefault("cogging_wide_gram", {})
-        b_on = np.ascontiguousarray(b[on, 0])
-        if key not in store:
-            grams, first = {}, []
-            for h, X in self.grid_columns(rd, j, grid, rows):
-                A = X * wj
-                G = A.T @ A
-                if np.all(np.isfinite(G)) and np.any(np.diagonal(G)):
-                    grams[h] = G
-                    first.append((h, G, A.T @ b_on))
-            store[key] = grams
-            return iter(first)
-        grams = store[key]
-        th = np.nan_to_num(rd.q_motor[:, j])[on]
-        fwd = (_moving(rd, j)[on] >= 0).astype(float)
-        sliding = _sliding(rd, j)[on]
-        bwd, fwd = (1 - fwd) * sliding, fwd * sliding
-        s1, c1 = np.sin(th), np.cos(th)
-
-        def gen():
-            for chunk, anchor, sin_a, cos_a in self._batches(grid, th):
-                dots = np.empty((len(chunk), 4))
-                ripple_dots(np.asarray(chunk, dtype=np.int64), anchor, sin_a, cos_a, s1, c1, fwd, bwd, b_on, dots)
-                for i, h in enumerate(chunk):
-                    if h in grams:
-                        yield h, grams[h], dots[i] * wj
-        return gen()
 
 
 class CoggingPassBand(CoggingWide):

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import butter, sosfilt_zi
+from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from identification.regressor import arm_model, build_regressor, standard_vector
 from identification.signals import (NYQUIST_MARGIN, PAPER_FC_ACCELERATION_HZ, PAPER_FC_VELOCITY_HZ, FilterSettings,
@@ -125,6 +125,45 @@ class ResidualData:
             o = int(at[a + cols[0]])
             filtfilt_rows_into(sos, zi, X[:, a:b], pad, cols.astype(np.int64), out[:, o:o + len(cols)])
         return out
+
+    def lowpass_adjoint(self, b: np.ndarray, runs=None, keep: np.ndarray | None = None) -> np.ndarray:
+        """The transpose of :meth:`lowpass_series` applied to b: v (N,) with ``lowpass_series(XT, runs, keep) @ b``
+        = ``XT @ v`` for every XT (M, N), to rounding. ``b``: (keep.sum(),), or (N,) without ``keep``. So X_f^T b
+        of many filtered series costs one filtering of b backwards (per run: the zero-phase filter's two passes
+        transposed, the initial states' and the odd extension's terms added) and the series' dot products with v,
+        instead of filtering each series. Samples outside every run get 0 (they are not filtered)."""
+        sos, zi = self._sos(), self._sos_zi().reshape(-1, 2)
+        spans = self.signals.runs if runs is None else runs
+        n_all = len(self.t) if keep is None else len(keep)
+        full = np.zeros(n_all)
+        if keep is None:
+            full[:] = b
+        else:
+            full[np.asarray(keep, dtype=bool)] = b
+        v = np.zeros(n_all)
+        for a, e in spans:
+            L = e - a
+            u = full[a:e]
+            if L <= 0 or not np.any(u):
+                continue
+            P = max(min(3 * (2 * len(sos) + 1) * 4, L - 1), 0)
+            Le = L + 2 * P
+            r = sosfilt(sos, np.zeros(Le), zi=zi)[0]       # the passes' response to their initial state (per unit)
+            y = np.zeros(Le)
+            y[P:P + L] = u                                  # the output's samples, transposed
+            y_adj = sosfilt(sos, y)                         # the backward pass transposed: a forward pass ...
+            y_adj[-1] += float(r[::-1] @ y)                 # ... and its initial state, set by the last sample
+            e_adj = sosfilt(sos, y_adj[::-1])[::-1]         # the forward pass transposed: a backward pass ...
+            e_adj[0] += float(r @ y_adj)                    # ... and its initial state, set by the first sample
+            x_adj = e_adj[P:P + L].copy()                   # the odd extension transposed
+            if P:
+                k = np.arange(P)
+                x_adj[0] += 2.0 * e_adj[:P].sum()
+                np.subtract.at(x_adj, P - k, e_adj[:P])
+                x_adj[L - 1] += 2.0 * e_adj[P + L:].sum()
+                np.subtract.at(x_adj, L - 2 - k, e_adj[P + L:])
+            v[a:e] += x_adj
+        return v
 
     def _sos(self) -> np.ndarray:
         sos = self.extra.get("sos")

@@ -137,45 +137,78 @@ def test_lowpass_series_keep_is_the_picked_columns(rd):
     assert not np.any(got[:, 2])
 
 
-def test_ripple_dots_are_the_columns_times_b():
+@pytest.mark.parametrize("masked", [False, True])
+def test_ripple_dots_are_the_columns_times_b(masked):
     """``ripple_dots`` (X^T b without the columns) against ``ripple_columns``' columns times b, with the anchors
-    ``Cogging._batches`` makes (runs, gaps, more than RECUR period counts in a row), to 1e-12 of the sums' scale."""
+    ``Cogging._batches`` makes (runs, gaps, more than RECUR period counts in a row) and with the speed mask or
+    without, to 1e-12 of the sums' scale."""
     from diagnosis.library import Cogging
     from diagnosis.ripple_kernel import ripple_columns, ripple_dots
 
     rng = np.random.default_rng(11)
-    L = 4000
+    L, fs = 4000, 250.0
     th = np.cumsum(rng.normal(0.0, 0.05, L)) + 40.0
+    speed = np.abs(np.gradient(th) * fs)
     sliding = (rng.uniform(size=L) > 0.1).astype(float)
     forward = (rng.uniform(size=L) > 0.5).astype(float)
     fwd, bwd = forward * sliding, (1 - forward) * sliding
     b = rng.normal(size=L)
     grid = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 14, 15, 40, 41, 96]
     (chunk, anchor, sin_a, cos_a), = list(Cogging()._batches(grid, th))
-    args = (np.asarray(chunk, dtype=np.int64), anchor, sin_a, cos_a, np.sin(th), np.cos(th), fwd, bwd)
+    args = (np.asarray(chunk, dtype=np.int64), anchor, sin_a, cos_a, np.sin(th), np.cos(th), fwd, bwd, speed,
+            masked, float(np.pi * fs))
     X = np.empty((len(chunk), 4, L))
-    ripple_columns(*args, np.zeros(L), False, 1.0, X)
+    ripple_columns(*args, X)
     got = np.empty((len(chunk), 4))
     ripple_dots(*args, b, got)
     want = X @ b
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.sqrt(L))
     assert np.abs(want).max() > 1.0
+    if masked:
+        assert (X[-1] == 0).sum() > (X[0] == 0).sum()
 
 
-def test_wide_cogging_gram_is_the_columns(rd):
-    """``CoggingWide.grid_gram``: at its first call the normal equations the search forms from the columns (the
-    same numbers), kept; at a later call (another residual) the same Gram matrices and A^T b to rounding; a change
-    of rows is a new store."""
-    from diagnosis.library import CoggingWide
+def test_lowpass_adjoint_is_the_filters_transpose(rd):
+    """``lowpass_adjoint`` is the transpose of ``lowpass_series``: (F X)[keep] b = X (F^T b), over the recording's
+    runs with random kept rows, and on runs of 2 to 200 samples (the odd extension shorter than its full length),
+    to 1e-12 of the sums' scale."""
+    rng = np.random.default_rng(2)
+    N = len(rd.t)
+    X = rng.normal(size=(3, N))
+    keep = rng.random(N) < 0.4
+    b = rng.normal(size=int(keep.sum()))
+    lhs = rd.lowpass_series(X, keep=keep) @ b
+    np.testing.assert_allclose(X @ rd.lowpass_adjoint(b, keep=keep), lhs, rtol=0, atol=1e-12 * np.abs(lhs).max())
+    whole = rng.normal(size=N)
+    lhs = rd.lowpass_series(X) @ whole
+    np.testing.assert_allclose(X @ rd.lowpass_adjoint(whole), lhs, rtol=0, atol=1e-12 * np.abs(lhs).max())
+    for L in (2, 3, 10, 30, 80, 200):
+        runs = [(0, L), (L + 5, 2 * L + 5)]
+        Xs = rng.normal(size=(4, 2 * L + 10))
+        kk = np.zeros(2 * L + 10, dtype=bool)
+        kk[:L] = True
+        kk[L + 5:2 * L + 5] = rng.random(L) < 0.7
+        bb = rng.normal(size=int(kk.sum()))
+        lhs = rd.lowpass_series(Xs, runs, keep=kk) @ bb
+        np.testing.assert_allclose(Xs @ rd.lowpass_adjoint(bb, runs, keep=kk), lhs, rtol=0,
+                                   atol=1e-12 * np.abs(lhs).max())
 
-    term, j = CoggingWide(), 3
+
+@pytest.mark.parametrize("kind", ["low", "wide"])
+def test_cogging_gram_is_the_columns(rd, kind):
+    """``Cogging.grid_gram`` (torque band) and ``CoggingWide.grid_gram`` (unfiltered): at the first call the normal
+    equations the search forms from the columns (the same numbers), kept; at a later call (another residual) the
+    same Gram matrices and A^T b to rounding; other rows are a new store."""
+    from diagnosis.library import Cogging, CoggingWide
+
+    term, j = (Cogging() if kind == "low" else CoggingWide()), 3
     rows = (rd.mask & rd.fit_rows[:, None])[:, [j]]                 # the search's fit rows on motor j
     grid = term.grid(rd, j)
     assert len(grid) > 10
     rng = np.random.default_rng(5)
     w = np.array([0.7])
     b1, b2 = rng.normal(size=(len(rd.t), 1)), rng.normal(size=(len(rd.t), 1))
-    rd.extra.pop("cogging_wide_gram", None)
+    rd.extra.pop("cogging_gram", None)
 
     def by_columns(b):
         out = {}
@@ -199,7 +232,7 @@ def test_wide_cogging_gram_is_the_columns(rd):
         np.testing.assert_allclose(Ab, want2[h][1], rtol=0, atol=1e-11 * np.abs(want2[h][1]).max())
     other = rows.copy()
     other[: len(other) // 2] = False
-    assert len(rd.extra["cogging_wide_gram"]) == 1
+    assert len(rd.extra["cogging_gram"]) == 1
     list(term.grid_gram(rd, j, grid, other, w, b1))
-    assert len(rd.extra["cogging_wide_gram"]) == 2
-    rd.extra.pop("cogging_wide_gram", None)
+    assert len(rd.extra["cogging_gram"]) == 2
+    rd.extra.pop("cogging_gram", None)
