@@ -487,6 +487,7 @@ def test_stop40_speed_figures_are_the_committed_runs():
     seconds that scripts/bench_diagnose_speed.py printed in the six committed runs (the stop-39 code and this
     release, in turn), each run of the code it is said to be; the goal met in all three of this release's runs and
     in none of the stop-39 code's."""
+    import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
@@ -500,6 +501,8 @@ def test_stop40_speed_figures_are_the_committed_runs():
             assert (float(total[2]) > 1.0) == bool(tag)
             assert float(total[1]) == pytest.approx(float(total[0]) * 240.0 / (5.32 * 60), rel=0.01)
             got[tag].append(total + (_search_s(out),))
+            peak = float(re.search(r"^peak memory ([\d.]+) GiB", out, flags=re.M).group(1))
+            assert round(peak, 1) == (4.5 if tag else 3.3)        # "peak memory 4.5 -> 3.3 GiB"
 
     def cols(runs, k):
         return " / ".join(r[k] for r in runs)
@@ -515,4 +518,5 @@ def test_stop40_speed_figures_are_the_committed_runs():
     doc = " ".join((root / "docs/diagnosis.md").read_text().split())
     assert (f"**Speed (item 9), met: {cols(a, 0)} CPU s, {cols(a, 1)} per 4 minutes ({cols(a, 2)}x the goal); the "
             f"stop-39 code {cols(b, 0)}, {cols(b, 1)} ({cols(b, 2)}x)**") in doc
-    assert f"the search {cols(b, 3)} -> {cols(a, 3)} s" in doc
+    assert f"the search {cols(b, 3)} -> {cols(a, 3)} s; peak memory 4.5 -> 3.3 GiB" in doc
+    assert "peak memory 4.5 -> 3.3 GiB" in readme
