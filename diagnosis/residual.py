@@ -28,7 +28,7 @@ from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from identification.regressor import arm_model, build_regressor, standard_vector
 from identification.signals import (NYQUIST_MARGIN, PAPER_FC_ACCELERATION_HZ, PAPER_FC_VELOCITY_HZ, FilterSettings,
-                                    Signals, choose_cutoffs, from_log)
+                                    Signals, choose_cutoffs, filtfilt_padlen, from_log)
 from identification.trials import trial_spans
 from js2spec.drives import at_rest, motor_rest_speed
 from js2spec.errors import Js2Error
@@ -110,8 +110,7 @@ class ResidualData:
         if keep is None:
             out = np.empty(XT.shape, dtype=float)
             for a, b in spans:
-                pad = min(3 * (2 * len(sos) + 1) * 4, b - a - 1)
-                out[:, a:b] = filtfilt_rows(sos, zi, XT[:, a:b], max(pad, 0))
+                out[:, a:b] = filtfilt_rows(sos, zi, XT[:, a:b], filtfilt_padlen(sos, b - a))
             return out
         keep = np.asarray(keep, dtype=bool)
         X = np.asarray(XT, dtype=float)
@@ -121,9 +120,9 @@ class ResidualData:
             cols = np.flatnonzero(keep[a:b])
             if not len(cols):
                 continue
-            pad = max(min(3 * (2 * len(sos) + 1) * 4, b - a - 1), 0)
             o = int(at[a + cols[0]])
-            filtfilt_rows_into(sos, zi, X[:, a:b], pad, cols.astype(np.int64), out[:, o:o + len(cols)])
+            filtfilt_rows_into(sos, zi, X[:, a:b], filtfilt_padlen(sos, b - a), cols.astype(np.int64),
+                               out[:, o:o + len(cols)])
         return out
 
     def lowpass_adjoint(self, b: np.ndarray, runs=None, keep: np.ndarray | None = None) -> np.ndarray:
@@ -146,7 +145,7 @@ class ResidualData:
             u = full[a:e]
             if L <= 0 or not np.any(u):
                 continue
-            P = max(min(3 * (2 * len(sos) + 1) * 4, L - 1), 0)
+            P = filtfilt_padlen(sos, L)
             Le = L + 2 * P
             r = sosfilt(sos, np.zeros(Le), zi=zi)[0]       # the passes' response to their initial state (per unit)
             y = np.zeros(Le)

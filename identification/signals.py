@@ -171,13 +171,19 @@ def _sos(fc: float, fs: float, order: int):
     return butter(order, fc, btype="low", fs=fs, output="sos")
 
 
+def filtfilt_padlen(sos: np.ndarray, n: int) -> int:
+    """The odd extension's length for a zero-phase pass of ``sos`` over a run of n samples: scipy's default for
+    sosfiltfilt, 3 (2 sections + 1) x 4, shortened to fit the run (n - 1, at least 0). One rule for every filtering
+    of a run, here and in the diagnosis's torque band."""
+    return max(min(3 * (2 * len(sos) + 1) * 4, n - 1), 0)
+
+
 def _lp_runs(X: np.ndarray, fc: float, fs: float, order: int, runs) -> np.ndarray:
     sos = _sos(fc, fs, order)
     out = np.empty_like(X, dtype=float)
     for a, b in runs:
         seg = X[a:b]
-        pad = min(3 * (2 * len(sos) + 1) * 4, len(seg) - 1)
-        out[a:b] = sosfiltfilt(sos, seg, axis=0, padlen=max(pad, 0))
+        out[a:b] = sosfiltfilt(sos, seg, axis=0, padlen=filtfilt_padlen(sos, len(seg)))
     return out
 
 
