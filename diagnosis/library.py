@@ -264,6 +264,18 @@ def _rest_rows(rd: ResidualData) -> list | None:
     return hit[1]
 
 
+def weighted_gram(X: np.ndarray, w) -> tuple[np.ndarray, np.ndarray] | None:
+    """A grid point's weighted columns A = X * w (w: a motor's weight, or a column of each row's) and their Gram
+    matrix G = A^T A; None where G is not finite (a simulated link that diverged) or every column is zero on these
+    rows (G's diagonal: their sums of squares). The one rule the search (``MismatchSearch._fit_grid``) and a term's
+    own normal equations (:meth:`Cogging.grid_gram`) keep a grid point by."""
+    A = X * w
+    G = A.T @ A                      # normal equations on the (k x k) Gram matrix: few columns, many rows
+    if not np.all(np.isfinite(G)) or not np.any(np.diagonal(G)):
+        return None
+    return A, G
+
+
 def _sliding(rd: ResidualData, i: int) -> np.ndarray:
     """1.0 where motor i is not at rest (``ResidualData.at_rest``), 0.0 where it is: a column that is not made by
     ``columns`` (a filtered store of a whole grid) is multiplied by it, as :meth:`Term.__init_subclass__` says."""
@@ -698,9 +710,9 @@ class Cogging(Term):
         if key not in store:
             grams, first = {}, []
             for h, X in self.grid_columns(rd, j, grid, rows):
-                A = X * wj
-                G = A.T @ A
-                if np.all(np.isfinite(G)) and np.any(np.diagonal(G)):
+                kept = weighted_gram(X, wj)
+                if kept is not None:
+                    A, G = kept
                     grams[h] = G
                     first.append((h, G, A.T @ b_on))
             store[key] = grams

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .backfit import JointNormalEquations
-from .library import KINDS, LIBRARY, REFERENCE_KINDS, Fitted, Term
+from .library import KINDS, LIBRARY, REFERENCE_KINDS, Fitted, Term, weighted_gram
 from .residual import ResidualData
 
 
@@ -289,12 +289,10 @@ class MismatchSearch:
                             term.grid_columns(rd, j, hs, sel_fit))
             items = []
             for h, X in grid_columns:
-                A = X * w_sub
-                G = A.T @ A                      # normal equations on the (k x k) Gram matrix: few columns, many rows
-                if not np.all(np.isfinite(G)):
-                    continue                     # columns not finite (a simulated link that diverged): G shows it
-                if not np.any(np.diagonal(G)):
-                    continue                     # every column zero on these rows (G's diagonal: their sums of squares)
+                kept = weighted_gram(X, w_sub)   # None: columns not finite, or all zero on these rows
+                if kept is None:
+                    continue
+                A, G = kept
                 items.append((h, A, G))
                 if keep and len(items) == 1:
                     keep = self._cache_used + A.nbytes * len(hs) <= self.CACHE_BYTES
