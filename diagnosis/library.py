@@ -90,6 +90,9 @@ class Term:
                                 # (not the search's keep-store protocol below); dropped when the search ends
     search_caches: tuple = ()   # rd.extra keys of what the term keeps for the search alone (``grid_columns(...,
                                 # keep=True)``, ``store_bytes``): MismatchSearch.fit drops them when it ends
+    hyper_on_select = False     # the ladder picks the grid point by what its fit-rows coefficients leave on the
+                                # SELECT rows (``MismatchSearch._fit_grid``), not by the fit rows' SSE: for a
+                                # hyper-parameter the fit rows cannot resolve (ThermalDrift's time constant)
 
     def fit_key(self):
         """What the search keeps this term's fit under (``MismatchSearch._evaluate``): itself. Terms with the same
@@ -1035,6 +1038,12 @@ class ThermalDrift(Term):
     search_caches = ("thermal_heat", "thermal_low")
 
     TAU_MIN = 10.0        # s: the fastest thermal lag tried
+    #: The time constant is chosen on the select rows: the fit rows (the excitation, often 20 s or less) hold too
+    #: little of the heating's course to tell a lag of the recording's span from a ramp once the nested refit takes
+    #: the level (bench case 741: a 23 s lag fitted on 2-21 s, fit gain 0.836-0.839 from 21 s to 146 s, the slowest
+    #: tried, which is refused as a ramp), while the select rows, later in the session, see whether the friction
+    #: levels off (select gain 0.938 at 21.5 s, 0.903 at 146 s). The coefficients stay the fit rows'.
+    hyper_on_select = True
     MIN_SPAN = 2.0        # the recording must span this many of the fastest lag for a drift to be looked for
 
     @classmethod

@@ -250,19 +250,23 @@ class MismatchSearch:
     CACHE_BYTES = 2 ** 31         # weighted columns kept across ladder steps (2 GiB; beyond it they are rebuilt)
 
     def _fit_grid(self, rd: ResidualData, term: Term, j: int, motors: np.ndarray, sel_fit: np.ndarray,
-                  rw: np.ndarray, w: np.ndarray, grid, key=None):
+                  rw: np.ndarray, w: np.ndarray, grid, key=None, choose=None):
         """Weighted least squares at every grid point on the rows ``sel_fit`` ((N, m) over ``motors``); the grid
         point with the least SSE (the first of equals), its coefficients, their std and its torque (N, m) on its
-        motors. None when every grid point's columns are zero there.
+        motors. None when every grid point's columns are zero there. With ``choose`` ((N, m), the select rows; for
+        a term that ``hyper_on_select``): the grid point whose fit-rows coefficients leave the least SSE on those
+        rows instead (:meth:`_fit_grid_on`).
 
         A ladder candidate (``key``) filtered into the torque band keeps its weighted columns and Gram matrices for
         the next steps (they do not change, only the residual does), while they fit in ``CACHE_BYTES`` (in the
         library's order; the rest are rebuilt at each step). A term with a smaller store of its own
         (``Term.search_caches``: ThermalDrift's filtered heat columns) keeps that instead, charged to the same
         budget."""
+        hs = term.grid(rd, j) if grid is None else grid
+        if choose is not None:
+            return self._fit_grid_on(rd, term, j, motors, sel_fit, choose, rw, w, hs, key)
         b = rw[:, motors][sel_fit]
         bb = float(b @ b)
-        hs = term.grid(rd, j) if grid is None else grid
         gram = term.grid_gram(rd, j, hs, sel_fit, w[motors], rw[:, motors])
         if gram is not None:      # the term's normal equations without its columns: SSE = b'b - 2 c'A'b + c'G c
             best = None
@@ -310,6 +314,42 @@ class MismatchSearch:
             if best is None or solved[0] < best[0]:
                 best = solved
         return self._finish(rd, term, j, motors, best, len(b))
+
+    def _fit_grid_on(self, rd: ResidualData, term: Term, j: int, motors: np.ndarray, sel_fit: np.ndarray,
+                     choose: np.ndarray, rw: np.ndarray, w: np.ndarray, hs, key=None):
+        """:meth:`_fit_grid` for a term that picks its hyper-parameter on the select rows (``Term.hyper_on_select``):
+        at every grid point the coefficients from the fit rows ``sel_fit``, as on the ladder; the point kept is the
+        one whose coefficients leave the least weighted SSE on the rows ``choose`` (the first of equals). Its std
+        come from the fit rows' SSE, as for any grid point. The columns are made once on both sets of rows (a term's
+        own store, ``Term.search_caches``, kept on them for the next steps and for the estimate on fit + select
+        rows that follows an acceptance: the same rows)."""
+        both = sel_fit | choose
+        on_fit = sel_fit[both]
+        on_sel = choose[both] & ~on_fit
+        b_all = rw[:, motors][both]
+        b, b_sel = b_all[on_fit], b_all[on_sel]
+        bb = float(b @ b)
+        w_sub = np.broadcast_to(w[motors], both.shape)[both][:, None]
+        keep = False
+        if key is not None and term.band == "low" and term.search_caches:
+            if key not in self._stores:
+                need = term.store_bytes(rd, j, hs, both)
+                if self._cache_used + need <= self.CACHE_BYTES:
+                    self._stores.add(key)
+                    self._cache_used += need
+            keep = key in self._stores
+        columns = term.grid_columns(rd, j, hs, both, keep=True) if keep else term.grid_columns(rd, j, hs, both)
+        best = None
+        for h, X in columns:
+            kept = weighted_gram(X[on_fit], w_sub[on_fit])
+            if kept is None:
+                continue
+            solved = self._solve((h, kept[0], kept[1]), b, bb)
+            left = b_sel - (X[on_sel] * w_sub[on_sel]) @ solved[2]
+            crit = float(left @ left)
+            if np.isfinite(crit) and (best is None or crit < best[0]):
+                best = (crit, solved)
+        return self._finish(rd, term, j, motors, None if best is None else best[1], len(b))
 
     @staticmethod
     def _solve(item, b, bb: float):
@@ -360,7 +400,9 @@ class MismatchSearch:
         if hit is not None and hit[0] == version:
             fitted_grid = hit[1]
         else:
-            fitted_grid = self._fit_grid(rd, term, j, motors, sel_fit, rw, w, grid, key)
+            choose = (rows["select_rows"][:, motors] if term.hyper_on_select and tuple(coef_rows) == ("fit_rows",)
+                      and (grid is None or len(grid) > 1) else None)
+            fitted_grid = self._fit_grid(rd, term, j, motors, sel_fit, rw, w, grid, key, choose=choose)
             if key is not None:
                 self._fits[key] = (version, fitted_grid)
         if fitted_grid is None:
