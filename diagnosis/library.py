@@ -93,6 +93,8 @@ class Term:
     hyper_on_select = False     # the ladder picks the grid point by what its fit-rows coefficients leave on the
                                 # SELECT rows (``MismatchSearch._fit_grid``), not by the fit rows' SSE: for a
                                 # hyper-parameter the fit rows cannot resolve (ThermalDrift's time constant)
+    grid_blocks = False         # on one motor, its grid's columns are one column per grid point beside columns
+                                # every point shares, given by ``lowpassed_grid`` (MismatchSearch._fit_grid_blocks)
 
     def fit_key(self):
         """What the search keeps this term's fit under (``MismatchSearch._evaluate``): itself. Terms with the same
@@ -1044,6 +1046,7 @@ class ThermalDrift(Term):
     #: tried, which is refused as a ramp), while the select rows, later in the session, see whether the friction
     #: levels off (select gain 0.938 at 21.5 s, 0.903 at 146 s). The coefficients stay the fit rows'.
     hyper_on_select = True
+    grid_blocks = True
     MIN_SPAN = 2.0        # the recording must span this many of the fastest lag for a drift to be looked for
 
     @classmethod
@@ -1109,17 +1112,29 @@ class ThermalDrift(Term):
 
     def grid_columns(self, rd, j, grid, rows, keep: bool = False):
         """:meth:`Term.grid_columns` (the same numbers: each series filtered alone, gathered on ``rows``), made from
-        the filtered heat columns of every grid point gathered on ``rows`` (one column each, the heat source made
-        once: :meth:`heat_input`) and the two refit columns, the same at every grid point (filtered once).
-        ``keep``: keep them (in ``rd.extra["thermal_low"]``, :meth:`store_bytes`) for the next call with the same
-        joint, rows and grid — the ladder asks again at each step with the same rows, only the residual changes, so
-        the heat source is filtered through each time constant and the torque filter once per search instead of
-        once per step. ``MismatchSearch.fit`` decides within its ``CACHE_BYTES`` and drops the store when it ends
-        (``search_caches``)."""
+        :meth:`lowpassed_grid`: the filtered heat columns of every grid point gathered on ``rows`` (one column each)
+        and the two refit columns, the same at every grid point (filtered once). ``keep``: see there."""
         grid = list(grid)
         if rows.shape[1] != 1 or not grid:
             yield from super().grid_columns(rd, j, grid, rows)
             return
+        heat_low, shared = self.lowpassed_grid(rd, j, grid, rows, keep=keep)
+        for i, h in enumerate(grid):
+            X = np.empty((heat_low.shape[1], 3))
+            X[:, 0] = heat_low[i]
+            X[:, 1:] = shared
+            yield h, X
+
+    def lowpassed_grid(self, rd, j, grid, rows, keep: bool = False):
+        """(heat_low (P, L), shared (L, 2)): the heat column of each of the P grid points and the two refit columns,
+        filtered into the torque band and gathered on the L rows of ``rows`` ((N, 1), motor j), the heat source made
+        once (:meth:`heat_input`), the refit columns filtered once. ``keep``: keep them (in
+        ``rd.extra["thermal_low"]``, :meth:`store_bytes`) for the next call with the same joint, rows and grid —
+        the ladder asks again at each step with the same rows, only the residual changes, so the heat source is
+        filtered through each time constant and the torque filter once per search instead of once per step.
+        ``MismatchSearch.fit`` decides within its ``CACHE_BYTES`` and drops the store when it ends
+        (``search_caches``)."""
+        grid = list(grid)
         on = rows[:, 0]
         key = (j, hashlib.blake2b(np.packbits(on).tobytes() + repr(grid).encode(), digest_size=16).digest())
         store = rd.extra.get("thermal_low", {}).get(key)
@@ -1143,12 +1158,7 @@ class ThermalDrift(Term):
             store = (heat_low, shared)
             if keep:
                 rd.extra.setdefault("thermal_low", {})[key] = store
-        heat_low, shared = store
-        for i, h in enumerate(grid):
-            X = np.empty((heat_low.shape[1], 3))
-            X[:, 0] = heat_low[i]
-            X[:, 1:] = shared
-            yield h, X
+        return store
 
     #: The smallest change of the friction (relative, largest over the recording) a drift must make to be named.
     #: The model's friction, from the sequential tests, and a recording of another moment differ by a few % anyway

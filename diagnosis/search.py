@@ -329,6 +329,8 @@ class MismatchSearch:
         b_all = rw[:, motors][both]
         b, b_sel = b_all[on_fit], b_all[on_sel]
         bb = float(b @ b)
+        if len(motors) == 1 and term.grid_blocks:
+            return self._fit_grid_blocks(rd, term, j, motors, both, on_fit, on_sel, b, b_sel, bb, w, hs, key)
         w_sub = np.broadcast_to(w[motors], both.shape)[both][:, None]
         keep = False
         if key is not None and term.band == "low" and term.search_caches:
@@ -349,6 +351,50 @@ class MismatchSearch:
             crit = float(left @ left)
             if np.isfinite(crit) and (best is None or crit < best[0]):
                 best = (crit, solved)
+        return self._finish(rd, term, j, motors, None if best is None else best[1], len(b))
+
+    def _fit_grid_blocks(self, rd, term, j, motors, both, on_fit, on_sel, b, b_sel, bb: float, w, hs, key=None):
+        """:meth:`_fit_grid_on` for a term on one motor whose grid's columns are one column per grid point beside
+        columns shared by every point (``Term.grid_blocks``, ``term.lowpassed_grid``: ThermalDrift's filtered heat
+        columns and its two refit columns). Every grid point's Gram matrices on the fit and on the select rows come from the blocks'
+        dot products (each point's column with itself and with the shared columns, the shared columns' own Gram
+        matrix), made once per search and kept across the ladder's steps (only the residual changes; charged to
+        ``CACHE_BYTES``); a step then costs two matrix-vector products per part. The select rows' SSE and the fit
+        rows' SSE come from the normal equations (:meth:`_solve`'s rule: b'b - 2 c'A'b + c'G c). The same choice
+        as the columns' (``tests/test_diag_select_choice.py``)."""
+        parts = self._block_parts.get(key) if key is not None else None
+        if parts is None:
+            heat_low, shared = term.lowpassed_grid(rd, j, hs, both)
+            w0 = float(w[motors][0])
+            parts = []
+            for part in (on_fit, on_sel):
+                H, S = heat_low[:, part] * w0, shared[part] * w0        # the weighted columns on this part's rows
+                k = 1 + S.shape[1]
+                G = np.empty((len(hs), k, k))
+                G[:, 0, 0] = np.einsum("ij,ij->i", H, H)
+                G[:, 0, 1:] = G[:, 1:, 0] = H @ S
+                G[:, 1:, 1:] = S.T @ S
+                parts.append((H, S, G))
+            if key is not None:
+                need = sum(H.nbytes + S.nbytes + G.nbytes for H, S, G in parts)
+                if self._cache_used + need <= self.CACHE_BYTES:
+                    self._block_parts[key] = parts
+                    self._cache_used += need
+        (H_fit, S_fit, G_fit), (H_sel, S_sel, G_sel) = parts
+        Ab_fit = np.concatenate([(H_fit @ b)[:, None], np.broadcast_to(S_fit.T @ b, (len(hs), S_fit.shape[1]))], 1)
+        Ab_sel = np.concatenate([(H_sel @ b_sel)[:, None],
+                                 np.broadcast_to(S_sel.T @ b_sel, (len(hs), S_sel.shape[1]))], 1)
+        bb_sel = float(b_sel @ b_sel)
+        best = None
+        for i, h in enumerate(hs):
+            G = G_fit[i]
+            if not np.all(np.isfinite(G)) or not np.any(np.diag(G) != 0) or not np.all(np.isfinite(Ab_fit[i])):
+                continue          # weighted_gram's rule: columns not finite, or all zero on these rows
+            coef = np.linalg.lstsq(G, Ab_fit[i], rcond=None)[0]
+            sse = max(bb - 2.0 * float(coef @ Ab_fit[i]) + float(coef @ G @ coef), 0.0)
+            crit = bb_sel - 2.0 * float(coef @ Ab_sel[i]) + float(coef @ G_sel[i] @ coef)
+            if np.isfinite(crit) and (best is None or crit < best[0]):
+                best = (crit, (sse, h, coef, G))
         return self._finish(rd, term, j, motors, None if best is None else best[1], len(b))
 
     @staticmethod
@@ -520,7 +566,7 @@ class MismatchSearch:
         # the ladder's caches: each candidate's fit until an accepted term changes its motors' residual (a version
         # per band and motor), and the residual's statistics
         self._fits, self._stats_cache, self._masks = {}, {}, None
-        self._columns_cache, self._cache_used, self._stores = {}, 0, set()
+        self._columns_cache, self._cache_used, self._stores, self._block_parts = {}, 0, set(), {}
         self._versions = {band: np.zeros(rd.n, dtype=int) for band in res}
         self._order: list[Scored] = []            # accepted terms (named and reference) in the order accepted
         self.dropped_: list[tuple[Scored, str]] = []   # accepted, then dropped by the joint refit (and why)
@@ -592,7 +638,8 @@ class MismatchSearch:
         self.final_ = {band: {"fit": _rms(r, m_fit), "select": _rms(r, m_sel), "holdout": _rms(r, m_rep)}
                        for band, r in res.items()}
         # arrays of the recording's size
-        for cache in ("_fits", "_stats_cache", "_masks", "_float_mask_cache", "_columns_cache", "_stores", "_order"):
+        for cache in ("_fits", "_stats_cache", "_masks", "_float_mask_cache", "_columns_cache", "_stores",
+                      "_block_parts", "_order"):
             self.__dict__.pop(cache, None)
         for cache in {key for t in self.library for key in t.search_caches + t.step_caches}:   # the terms' stores
             rd.extra.pop(cache, None)

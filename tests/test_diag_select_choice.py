@@ -31,7 +31,7 @@ def _search(rd, res):
         rms = _rms(r, m_fit)
         weights[band] = 1.0 / np.where(np.isfinite(rms) & (rms > 0), rms, 1.0)
     search._fits, search._stats_cache, search._masks = {}, {}, None
-    search._columns_cache, search._cache_used, search._stores = {}, 0, set()
+    search._columns_cache, search._cache_used, search._stores, search._block_parts = {}, 0, set(), {}
     search._versions = {band: np.zeros(rd.n, dtype=int) for band in res}
     return search, weights
 
@@ -88,12 +88,15 @@ def test_the_lag_kept_is_the_one_the_select_rows_prefer(rd):
     assert got.fitted.plausible and got.select_gain > 0.5
 
 
-def test_the_choice_is_the_fit_rows_least_squares_at_every_point(rd):
+@pytest.mark.parametrize("blocks", [True, False])
+def test_the_choice_is_the_fit_rows_least_squares_at_every_point(rd, blocks):
     """``_fit_grid_on`` agrees with the column-by-column reading at every grid point (select SSE to 1e-8 relative),
-    and the fit-rows SSE it reports (which scales the std) is the chosen point's fit-rows SSE."""
+    and the std it reports come from the chosen point's fit-rows SSE; both ways: from the blocks' dot products
+    (``_fit_grid_blocks``, the thermal drift's) and from each grid point's columns (any other term)."""
     from diagnosis.library import ThermalDrift
 
-    term, j = ThermalDrift(), 2
+    term = ThermalDrift() if blocks else type("ThermalColumns", (ThermalDrift,), {"grid_blocks": False})()
+    j = 2
     res = _drifting(rd, j, 30.0, 0.05)
     search, weights = _search(rd, res)
     brute = {h: (s, f) for s, f, h in _brute_force(rd, term, j, res, weights)}
@@ -113,9 +116,11 @@ def test_the_choice_is_the_fit_rows_least_squares_at_every_point(rd):
         want_std = np.sqrt(np.diag(fit_sse / (int(fit.sum()) - 3) * np.linalg.pinv(G)))
         np.testing.assert_allclose(std, want_std, rtol=1e-6)
     s, f, h = min(((s, f, h) for h, (s, f) in brute.items()), key=lambda x: x[0])
-    hh, coef, std, _ = search._fit_grid_on(rd, term, j, motors, rows["fit_rows"][:, motors],
-                                           rows["select_rows"][:, motors], rw, weights["low"], list(brute))
-    assert hh == h
+    for key in (None, (term, j), (term, j)):           # no store, then one made and one read
+        hh, coef, std, _ = search._fit_grid_on(rd, term, j, motors, rows["fit_rows"][:, motors],
+                                               rows["select_rows"][:, motors], rw, weights["low"], list(brute), key)
+        assert hh == h
+    assert (key in search._block_parts) == blocks
 
 
 def test_only_the_thermal_drift_chooses_on_the_select_rows():

@@ -177,21 +177,25 @@ def test_thermal_store_gives_the_default_columns_to_the_bit(rd, j):
 
 def test_search_drops_the_terms_stores(rd):
     """What a term keeps in rd.extra for the search alone (``Term.search_caches``: ThermalDrift's filtered heat
-    columns, arrays of the recording's size per joint) is gone once the search ends."""
+    columns, arrays of the recording's size per joint) and what the search keeps of them across its steps (since stop
+    41 the thermal drift's blocks and their Gram matrices on the fit and select rows, ``_block_parts``) are gone once
+    the search ends."""
     from diagnosis.library import LIBRARY
     from diagnosis.search import MismatchSearch
 
     keys = {k for t in LIBRARY for k in t.search_caches}
     assert "thermal_low" in keys
     seen = []
+    search = MismatchSearch(kinds=["thermal_drift"], max_terms=1)
 
-    def progress(tasks, desc):           # what rd.extra holds once a ladder step has scored every candidate
+    def progress(tasks, desc):           # what is held once a ladder step has scored every candidate
         yield from tasks
-        seen.append(sorted(keys & set(rd.extra)))
+        seen.append((sorted(keys & set(rd.extra)), len(search.__dict__.get("_block_parts", {}))))
 
-    MismatchSearch(kinds=["thermal_drift"], max_terms=1, progress=progress).fit(rd)
-    assert seen and "thermal_low" in seen[0], "the ladder should keep the thermal store between its steps"
-    assert not keys & set(rd.extra)
+    search.progress = progress
+    search.fit(rd)
+    assert seen and seen[0][1] == rd.n, "the ladder should keep each motor's thermal blocks between its steps"
+    assert not keys & set(rd.extra) and "_block_parts" not in search.__dict__
 
 
 @pytest.mark.parametrize("j", [1, 3])
