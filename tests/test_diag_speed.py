@@ -524,3 +524,42 @@ def test_stop40_speed_figures_are_the_committed_runs():
             f"stop-39 code {cols(b, 0)}, {cols(b, 1)} ({cols(b, 2)}x)**") in doc
     assert f"the search {cols(b, 3)} -> {cols(a, 3)} s; peak memory 4.5 -> 3.3 GiB" in doc
     assert "peak memory 4.5 -> 3.3 GiB" in readme
+
+
+def test_stop41_speed_figures_are_the_committed_runs():
+    """README's and docs/diagnosis.md's stop-41 speed figures: the totals, per-4-minute figures, ratios, search and
+    thermal-drift seconds that scripts/bench_diagnose_speed.py printed in the six committed runs (the stop-40 code
+    and this release, in turn), each run of the code it is said to be; the goal met in all six."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    got = {}
+    for tag in ("-before", ""):
+        got[tag] = []
+        for i in (1, 2, 3):
+            out = (root / f"docs/bench/diagnose-speed-2026-11-28-stop41{tag}-{i}.txt").read_text()
+            (total,) = _totals(out)
+            assert ("code: /tmp/wt40/diagnosis" if tag else "code: /work/main/diagnosis") in out
+            assert float(total[2]) < 1.0
+            assert float(total[1]) == pytest.approx(float(total[0]) * 240.0 / (5.32 * 60), rel=0.01)
+            thermal = re.search(r"^  thermal_drift +(?:[\d.]+ +){4}([\d.]+)$", out, flags=re.M).group(1)
+            got[tag].append(total + (_search_s(out), thermal))
+            peak = float(re.search(r"^peak memory ([\d.]+) GiB", out, flags=re.M).group(1))
+            assert round(peak, 1) == 3.3
+
+    def cols(runs, k):
+        return " / ".join(r[k] for r in runs)
+
+    a, b = got[""], got["-before"]
+    readme = _readme_flat()
+    assert (f"**{cols(a, 0)} CPU s, per 4 minutes {cols(a, 1)} ({cols(a, 2)}x the 30 s goal); the stop-40 code in the "
+            f"same session {cols(b, 0)} CPU s, per 4 minutes {cols(b, 1)} ({cols(b, 2)}x): met in all three runs**"
+            ) in readme
+    assert f"the search {cols(b, 3)} -> {cols(a, 3)} s, the thermal drift over the steps {cols(b, 4)} -> {cols(a, 4)} s" \
+        in readme
+    assert (f"- Speed: {cols(a, 2)}x the 30 s goal (stop 41's three runs; the stop-40 code {cols(b, 2)}x in the same "
+            "session): met.") in readme
+    doc = " ".join((root / "docs/diagnosis.md").read_text().split())
+    assert (f"**Speed (item 9), met: {cols(a, 0)} CPU s, {cols(a, 1)} per 4 minutes ({cols(a, 2)}x the goal); the "
+            f"stop-40 code {cols(b, 0)}, {cols(b, 1)} ({cols(b, 2)}x)**") in doc
