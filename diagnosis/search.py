@@ -321,8 +321,8 @@ class MismatchSearch:
         at every grid point the coefficients from the fit rows ``sel_fit``, as on the ladder; the point kept is the
         one whose coefficients leave the least weighted SSE on the rows ``choose`` (the first of equals). Its std
         come from the fit rows' SSE, as for any grid point. The columns are made once on both sets of rows (a term's
-        own store, ``Term.search_caches``, kept on them for the next steps and for the estimate on fit + select
-        rows that follows an acceptance: the same rows)."""
+        own store, ``Term.search_caches``, kept on them for the next steps); a term on one motor whose columns are
+        blocks (``Term.grid_blocks``) is read from their dot products instead (:meth:`_fit_grid_blocks`)."""
         both = sel_fit | choose
         on_fit = sel_fit[both]
         on_sel = choose[both] & ~on_fit
@@ -356,12 +356,12 @@ class MismatchSearch:
     def _fit_grid_blocks(self, rd, term, j, motors, both, on_fit, on_sel, b, b_sel, bb: float, w, hs, key=None):
         """:meth:`_fit_grid_on` for a term on one motor whose grid's columns are one column per grid point beside
         columns shared by every point (``Term.grid_blocks``, ``term.lowpassed_grid``: ThermalDrift's filtered heat
-        columns and its two refit columns). Every grid point's Gram matrices on the fit and on the select rows come from the blocks'
-        dot products (each point's column with itself and with the shared columns, the shared columns' own Gram
-        matrix), made once per search and kept across the ladder's steps (only the residual changes; charged to
-        ``CACHE_BYTES``); a step then costs two matrix-vector products per part. The select rows' SSE and the fit
-        rows' SSE come from the normal equations (:meth:`_solve`'s rule: b'b - 2 c'A'b + c'G c). The same choice
-        as the columns' (``tests/test_diag_select_choice.py``)."""
+        columns and its two refit columns). Every grid point's Gram matrices on the fit and on the select rows come
+        from the blocks' dot products (each point's column with itself and with the shared columns, the shared
+        columns' own Gram matrix), made once per search and kept across the ladder's steps (only the residual
+        changes; charged to ``CACHE_BYTES``); a step then costs two matrix-vector products per part. The select
+        rows' SSE and the fit rows' SSE come from the normal equations (:meth:`_solve`'s rule: b'b - 2 c'A'b +
+        c'G c). The same choice as the columns' (``tests/test_diag_select_choice.py``)."""
         parts = self._block_parts.get(key) if key is not None else None
         if parts is None:
             heat_low, shared = term.lowpassed_grid(rd, j, hs, both)
@@ -446,8 +446,10 @@ class MismatchSearch:
         if hit is not None and hit[0] == version:
             fitted_grid = hit[1]
         else:
-            choose = (rows["select_rows"][:, motors] if term.hyper_on_select and tuple(coef_rows) == ("fit_rows",)
-                      and (grid is None or len(grid) > 1) else None)
+            # a term that picks its hyper-parameter on the select rows, where its motors have them (else the fit rows)
+            choose = rows["select_rows"][:, motors]
+            choose = (choose if term.hyper_on_select and tuple(coef_rows) == ("fit_rows",)
+                      and (grid is None or len(grid) > 1) and choose.sum() >= 20 else None)
             fitted_grid = self._fit_grid(rd, term, j, motors, sel_fit, rw, w, grid, key, choose=choose)
             if key is not None:
                 self._fits[key] = (version, fitted_grid)

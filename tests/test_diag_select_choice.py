@@ -123,6 +123,24 @@ def test_the_choice_is_the_fit_rows_least_squares_at_every_point(rd, blocks):
     assert (key in search._block_parts) == blocks
 
 
+def test_without_select_rows_on_its_motor_the_fit_rows_choose(rd):
+    """Where the term's motor has fewer than 20 select rows (all of them lost, say), the lag is the fit rows' choice
+    as before stop 41, not the first of a grid of equal (empty) select sums."""
+    import copy
+
+    from diagnosis.library import ThermalDrift
+
+    bare = copy.copy(rd)
+    bare.select_rows = np.zeros_like(rd.select_rows)
+    bare.extra = {}
+    term, j = ThermalDrift(), 0
+    res = _drifting(bare, j, 0.8 * float(rd.t[-1] - rd.t[0]), 1.0)
+    search, weights = _search(bare, res)
+    got = search._evaluate(bare, term, j, res, weights)
+    brute = _brute_force(bare, term, j, res, weights)
+    assert got.fitted.hyper == min(brute, key=lambda x: x[1])[2] != term.grid(bare, j)[0]
+
+
 def test_only_the_thermal_drift_chooses_on_the_select_rows():
     """The other terms keep the fit rows' choice (their hyper-parameters are shapes the fit rows resolve); the
     choice on select rows is the thermal drift's alone."""
