@@ -486,11 +486,11 @@ def test_stop39_speed_figures_are_the_committed_runs():
             f"({b_x}x)**") in doc
 
 
-def test_stop40_speed_figures_are_the_committed_runs():
-    """README's and docs/diagnosis.md's stop-40 speed figures: the totals, per-4-minute figures, ratios and search
-    seconds that scripts/bench_diagnose_speed.py printed in the six committed runs (the stop-39 code and this
-    release, in turn), each run of the code it is said to be; the goal met in all three of this release's runs and
-    in none of the stop-39 code's."""
+def _committed_speed_pairs(stop: str, before_code: str) -> dict:
+    """The three runs in turn of docs/bench/diagnose-speed-2026-11-28-STOP{-before,}-{1,2,3}.txt: per tag ("-before":
+    the earlier code, checked out at ``before_code``; "": this release), each run's (total CPU s, per 4 minutes,
+    ratio to the goal, search s, thermal drift s over the steps: the strings printed) and its peak memory in GiB;
+    each printed by the code it is said to be, its per-4-minute figure the total scaled to 4 of the 5.32 minutes."""
     import re
     from pathlib import Path
 
@@ -499,30 +499,53 @@ def test_stop40_speed_figures_are_the_committed_runs():
     for tag in ("-before", ""):
         got[tag] = []
         for i in (1, 2, 3):
-            out = (root / f"docs/bench/diagnose-speed-2026-11-28-stop40{tag}-{i}.txt").read_text()
+            out = (root / f"docs/bench/diagnose-speed-2026-11-28-{stop}{tag}-{i}.txt").read_text()
             (total,) = _totals(out)
-            assert ("code: /tmp/wt40base/diagnosis" if tag else "code: /work/main/diagnosis") in out
-            assert (float(total[2]) > 1.0) == bool(tag)
+            assert (f"code: {before_code}/diagnosis" if tag else "code: /work/main/diagnosis") in out
             assert float(total[1]) == pytest.approx(float(total[0]) * 240.0 / (5.32 * 60), rel=0.01)
-            got[tag].append(total + (_search_s(out),))
+            thermal = re.search(r"^  thermal_drift +(?:[\d.]+ +){4}([\d.]+)$", out, flags=re.M).group(1)
             peak = float(re.search(r"^peak memory ([\d.]+) GiB", out, flags=re.M).group(1))
-            assert round(peak, 1) == (4.5 if tag else 3.3)        # "peak memory 4.5 -> 3.3 GiB"
+            got[tag].append(total + (_search_s(out), thermal, peak))
+    return got
 
-    def cols(runs, k):
-        return " / ".join(r[k] for r in runs)
+
+def _cols(runs, k: int) -> str:
+    """Field ``k`` of three runs as the README prints it: 'a / b / c'."""
+    return " / ".join(r[k] for r in runs)
+
+
+def _assert_speed_headlines(readme: str, doc: str, a, b, stop: str, before: str) -> None:
+    """The README's and docs/diagnosis.md's headline figures of a stop's speed runs ``a`` beside the earlier code's
+    ``b`` (:func:`_committed_speed_pairs`): totals, per 4 minutes and ratios, met in all three runs."""
+    assert (f"**{_cols(a, 0)} CPU s, per 4 minutes {_cols(a, 1)} ({_cols(a, 2)}x the 30 s goal); the {before} code in "
+            f"the same session {_cols(b, 0)} CPU s, per 4 minutes {_cols(b, 1)} ({_cols(b, 2)}x): met in all three "
+            "runs**") in readme
+    assert (f"- Speed: {_cols(a, 2)}x the 30 s goal ({stop}'s three runs; the {before} code {_cols(b, 2)}x in the "
+            "same session)") in readme
+    assert (f"**Speed (item 9), met: {_cols(a, 0)} CPU s, {_cols(a, 1)} per 4 minutes ({_cols(a, 2)}x the goal); "
+            f"the {before} code {_cols(b, 0)}, {_cols(b, 1)} ({_cols(b, 2)}x)**") in doc
+
+
+def test_stop40_speed_figures_are_the_committed_runs():
+    """README's and docs/diagnosis.md's stop-40 speed figures: the totals, per-4-minute figures, ratios and search
+    seconds that scripts/bench_diagnose_speed.py printed in the six committed runs (the stop-39 code and this
+    release, in turn), each run of the code it is said to be; the goal met in all three of this release's runs and
+    in none of the stop-39 code's."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    got = _committed_speed_pairs("stop40", "/tmp/wt40base")
+    for tag, runs in got.items():
+        for run in runs:
+            assert (float(run[2]) > 1.0) == bool(tag)
+            assert round(run[5], 1) == (4.5 if tag else 3.3)        # "peak memory 4.5 -> 3.3 GiB"
 
     a, b = got[""], got["-before"]
     readme = _readme_flat()
-    assert (f"**{cols(a, 0)} CPU s, per 4 minutes {cols(a, 1)} ({cols(a, 2)}x the 30 s goal); the stop-39 code in the "
-            f"same session {cols(b, 0)} CPU s, per 4 minutes {cols(b, 1)} ({cols(b, 2)}x): met in all three runs**"
-            ) in readme
-    assert f"the search {cols(b, 3)} -> {cols(a, 3)} s" in readme
-    assert (f"- Speed: {cols(a, 2)}x the 30 s goal (stop 40's three runs; the stop-39 code {cols(b, 2)}x in the same "
-            "session)") in readme
     doc = " ".join((root / "docs/diagnosis.md").read_text().split())
-    assert (f"**Speed (item 9), met: {cols(a, 0)} CPU s, {cols(a, 1)} per 4 minutes ({cols(a, 2)}x the goal); the "
-            f"stop-39 code {cols(b, 0)}, {cols(b, 1)} ({cols(b, 2)}x)**") in doc
-    assert f"the search {cols(b, 3)} -> {cols(a, 3)} s; peak memory 4.5 -> 3.3 GiB" in doc
+    _assert_speed_headlines(readme, doc, a, b, "stop 40", "stop-39")
+    assert f"the search {_cols(b, 3)} -> {_cols(a, 3)} s" in readme
+    assert f"the search {_cols(b, 3)} -> {_cols(a, 3)} s; peak memory 4.5 -> 3.3 GiB" in doc
     assert "peak memory 4.5 -> 3.3 GiB" in readme
 
 
@@ -530,36 +553,18 @@ def test_stop41_speed_figures_are_the_committed_runs():
     """README's and docs/diagnosis.md's stop-41 speed figures: the totals, per-4-minute figures, ratios, search and
     thermal-drift seconds that scripts/bench_diagnose_speed.py printed in the six committed runs (the stop-40 code
     and this release, in turn), each run of the code it is said to be; the goal met in all six."""
-    import re
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
-    got = {}
-    for tag in ("-before", ""):
-        got[tag] = []
-        for i in (1, 2, 3):
-            out = (root / f"docs/bench/diagnose-speed-2026-11-28-stop41{tag}-{i}.txt").read_text()
-            (total,) = _totals(out)
-            assert ("code: /tmp/wt40/diagnosis" if tag else "code: /work/main/diagnosis") in out
-            assert float(total[2]) < 1.0
-            assert float(total[1]) == pytest.approx(float(total[0]) * 240.0 / (5.32 * 60), rel=0.01)
-            thermal = re.search(r"^  thermal_drift +(?:[\d.]+ +){4}([\d.]+)$", out, flags=re.M).group(1)
-            got[tag].append(total + (_search_s(out), thermal))
-            peak = float(re.search(r"^peak memory ([\d.]+) GiB", out, flags=re.M).group(1))
-            assert round(peak, 1) == 3.3
-
-    def cols(runs, k):
-        return " / ".join(r[k] for r in runs)
+    got = _committed_speed_pairs("stop41", "/tmp/wt40")
+    for runs in got.values():
+        for run in runs:
+            assert float(run[2]) < 1.0 and round(run[5], 1) == 3.3
 
     a, b = got[""], got["-before"]
     readme = _readme_flat()
-    assert (f"**{cols(a, 0)} CPU s, per 4 minutes {cols(a, 1)} ({cols(a, 2)}x the 30 s goal); the stop-40 code in the "
-            f"same session {cols(b, 0)} CPU s, per 4 minutes {cols(b, 1)} ({cols(b, 2)}x): met in all three runs**"
-            ) in readme
-    assert f"the search {cols(b, 3)} -> {cols(a, 3)} s, the thermal drift over the steps {cols(b, 4)} -> {cols(a, 4)} s" \
-        in readme
-    assert (f"- Speed: {cols(a, 2)}x the 30 s goal (stop 41's three runs; the stop-40 code {cols(b, 2)}x in the same "
-            "session): met.") in readme
     doc = " ".join((root / "docs/diagnosis.md").read_text().split())
-    assert (f"**Speed (item 9), met: {cols(a, 0)} CPU s, {cols(a, 1)} per 4 minutes ({cols(a, 2)}x the goal); the "
-            f"stop-40 code {cols(b, 0)}, {cols(b, 1)} ({cols(b, 2)}x)**") in doc
+    _assert_speed_headlines(readme, doc, a, b, "stop 41", "stop-40")
+    assert (f"the search {_cols(b, 3)} -> {_cols(a, 3)} s, the thermal drift over the steps {_cols(b, 4)} -> "
+            f"{_cols(a, 4)} s") in readme
+    assert f"three runs; the stop-40 code {_cols(b, 2)}x in the same session): met." in readme
