@@ -84,6 +84,15 @@ class Scored:
                 "band": self.band}
 
 
+def _cancels(coef: np.ndarray, G: np.ndarray, bb: float) -> bool:
+    """Whether b'b - 2 c'A'b + c'G c (the SSE from the normal equations) loses more than about 1e-8 of b'b to
+    rounding: its terms' magnitudes |c|'|G||c| exceed 1e8 b'b. Nearly collinear columns give huge coefficients of
+    opposite signs whose terms cancel to any number, negative too; the SSE is then read from the residual (stop 41:
+    the same cancellation in a thermal lag's select-rows SSE chose a lag whose torque overflowed on a CI run)."""
+    a = np.abs(coef)
+    return float(a @ np.abs(G) @ a) > 1e8 * max(bb, np.finfo(float).tiny)
+
+
 def _rms(x: np.ndarray, m: np.ndarray) -> np.ndarray:
     out = np.full(x.shape[1], np.nan)
     for i in range(x.shape[1]):
@@ -356,43 +365,50 @@ class MismatchSearch:
     def _fit_grid_blocks(self, rd, term, j, motors, both, on_fit, on_sel, b, b_sel, bb: float, w, hs, key=None):
         """:meth:`_fit_grid_on` for a term on one motor whose grid's columns are one column per grid point beside
         columns shared by every point (``Term.grid_blocks``, ``term.lowpassed_grid``: ThermalDrift's filtered heat
-        columns and its two refit columns). Every grid point's Gram matrices on the fit and on the select rows come
-        from the blocks' dot products (each point's column with itself and with the shared columns, the shared
-        columns' own Gram matrix), made once per search and kept across the ladder's steps (only the residual
-        changes; charged to ``CACHE_BYTES``); a step then costs two matrix-vector products per part. The select
-        rows' SSE and the fit rows' SSE come from the normal equations (:meth:`_solve`'s rule: b'b - 2 c'A'b +
-        c'G c). The same choice as the columns' (``tests/test_diag_select_choice.py``)."""
+        columns and its two refit columns). Every grid point's Gram matrix on the fit rows comes from the blocks'
+        dot products (each point's column with itself and with the shared columns, the shared columns' own Gram
+        matrix), made once per search and kept across the ladder's steps with the weighted blocks on both parts
+        (only the residual changes; charged to ``CACHE_BYTES``); a step then costs a matrix-vector product on the
+        fit rows and one pass over the select rows per grid point. The select rows' SSE from the residual on them,
+        the fit rows' from the normal equations (:meth:`_solve`'s rule: b'b - 2 c'A'b + c'G c; it only scales the
+        std). The same choice as the columns' (``tests/test_diag_select_choice.py``)."""
         parts = self._block_parts.get(key) if key is not None else None
         if parts is None:
             heat_low, shared = term.lowpassed_grid(rd, j, hs, both)
             w0 = float(w[motors][0])
-            parts = []
-            for part in (on_fit, on_sel):
-                H, S = heat_low[:, part] * w0, shared[part] * w0        # the weighted columns on this part's rows
-                k = 1 + S.shape[1]
-                G = np.empty((len(hs), k, k))
-                G[:, 0, 0] = np.einsum("ij,ij->i", H, H)
-                G[:, 0, 1:] = G[:, 1:, 0] = H @ S
-                G[:, 1:, 1:] = S.T @ S
-                parts.append((H, S, G))
+            # the weighted columns on each part's rows; the Gram matrices of the fit rows'
+            H_fit, S_fit = heat_low[:, on_fit] * w0, shared[on_fit] * w0
+            H_sel, S_sel = heat_low[:, on_sel] * w0, shared[on_sel] * w0
+            k = 1 + S_fit.shape[1]
+            G_fit = np.empty((len(hs), k, k))
+            G_fit[:, 0, 0] = np.einsum("ij,ij->i", H_fit, H_fit)
+            G_fit[:, 0, 1:] = G_fit[:, 1:, 0] = H_fit @ S_fit
+            G_fit[:, 1:, 1:] = S_fit.T @ S_fit
+            parts = (H_fit, S_fit, G_fit, H_sel, S_sel)
             if key is not None:
-                need = sum(H.nbytes + S.nbytes + G.nbytes for H, S, G in parts)
+                need = sum(a.nbytes for a in parts)
                 if self._cache_used + need <= self.CACHE_BYTES:
                     self._block_parts[key] = parts
                     self._cache_used += need
-        (H_fit, S_fit, G_fit), (H_sel, S_sel, G_sel) = parts
+        H_fit, S_fit, G_fit, H_sel, S_sel = parts
         Ab_fit = np.concatenate([(H_fit @ b)[:, None], np.broadcast_to(S_fit.T @ b, (len(hs), S_fit.shape[1]))], 1)
-        Ab_sel = np.concatenate([(H_sel @ b_sel)[:, None],
-                                 np.broadcast_to(S_sel.T @ b_sel, (len(hs), S_sel.shape[1]))], 1)
-        bb_sel = float(b_sel @ b_sel)
         best = None
         for i, h in enumerate(hs):
             G = G_fit[i]
             if not np.all(np.isfinite(G)) or not np.any(np.diag(G) != 0) or not np.all(np.isfinite(Ab_fit[i])):
                 continue          # weighted_gram's rule: columns not finite, or all zero on these rows
             coef = np.linalg.lstsq(G, Ab_fit[i], rcond=None)[0]
-            sse = max(bb - 2.0 * float(coef @ Ab_fit[i]) + float(coef @ G @ coef), 0.0)
-            crit = bb_sel - 2.0 * float(coef @ Ab_sel[i]) + float(coef @ G_sel[i] @ coef)
+            if _cancels(coef, G, bb):
+                left = b - H_fit[i] * coef[0] - S_fit @ coef[1:]
+                sse = float(left @ left)
+            else:
+                sse = max(bb - 2.0 * float(coef @ Ab_fit[i]) + float(coef @ G @ coef), 0.0)
+            # the select rows' SSE from the residual itself, not from the normal equations: where a lag's heat column
+            # is nearly a combination of the refit columns, G is nearly singular and the coefficients huge, and
+            # b'b - 2 c'A'b + c'G c then cancels to any number, negative too (a CI run chose such a lag: its torque
+            # overflowed). One pass over the select rows per grid point.
+            left = b_sel - H_sel[i] * coef[0] - S_sel @ coef[1:]
+            crit = float(left @ left)
             if np.isfinite(crit) and (best is None or crit < best[0]):
                 best = (crit, (sse, h, coef, G))
         return self._finish(rd, term, j, motors, None if best is None else best[1], len(b))
@@ -407,7 +423,11 @@ class MismatchSearch:
         h, A, G = item
         Ab = A.T @ b
         coef = np.linalg.lstsq(G, Ab, rcond=None)[0]
-        return max(bb - 2.0 * float(coef @ Ab) + float(coef @ G @ coef), 0.0), h, coef, G
+        sse = bb - 2.0 * float(coef @ Ab) + float(coef @ G @ coef)
+        if _cancels(coef, G, bb):
+            left = b - A @ coef
+            sse = float(left @ left)
+        return max(sse, 0.0), h, coef, G
 
     @staticmethod
     def _finish(rd, term, j, motors, best, rows):

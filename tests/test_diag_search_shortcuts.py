@@ -236,3 +236,28 @@ def test_cogging_gram_is_the_columns(rd, kind):
     list(term.grid_gram(rd, j, grid, other, w, b1))
     assert len(rd.extra["cogging_gram"]) == 2
     rd.extra.pop("cogging_gram", None)
+
+
+def test_normal_equations_sse_of_nearly_collinear_columns_is_the_residuals():
+    """Two columns equal but for 1e-7 of noise: lstsq on their Gram matrix gives coefficients of order 1e5 of
+    opposite signs, whose normal-equation terms lose digits to cancellation (here 1.6e-5 of the SSE; with more
+    collinearity any number, negative too). ``_solve`` then reads the SSE from the residual (stop 41: the same
+    cancellation in the thermal lag's select-rows SSE chose a lag whose torque overflowed)."""
+    from diagnosis.search import MismatchSearch, _cancels
+
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=4000)
+    A = np.column_stack([x, x + 1e-7 * rng.normal(size=4000), rng.normal(size=4000)])
+    b = 0.3 * x + rng.normal(size=4000)
+    G = A.T @ A
+    bb = float(b @ b)
+    sse, _, coef, _ = MismatchSearch._solve((0, A, G), b, bb)
+    want = _explicit(A, b, coef)
+    assert np.max(np.abs(coef)) > 1e4 and _cancels(coef, G, bb)
+    normal = bb - 2.0 * float(coef @ (A.T @ b)) + float(coef @ G @ coef)
+    assert abs(normal - want) > 1e-6 * want                 # what the normal equations alone would give
+    assert sse == pytest.approx(want, rel=1e-12)
+    # well-conditioned columns never take the explicit path
+    A2 = rng.normal(size=(4000, 3))
+    c2 = np.linalg.lstsq(A2.T @ A2, A2.T @ b, rcond=None)[0]
+    assert not _cancels(c2, A2.T @ A2, bb)
