@@ -2593,3 +2593,34 @@ def test_stop41_the_real_bench_names_four_more_drifts_and_nothing_else_changes()
     assert [key(r) for r in clean_new["rows"]] == [key(r) for r in clean_old["rows"]]
     assert [key(r) for r in clean_new["payload_rows"]] == [key(r) for r in clean_old["payload_rows"]]
     assert clean_new["summary"] == clean_old["summary"]
+
+
+def test_stop41_the_final_code_names_what_the_committed_rows_name():
+    """Stop 41's committed rows were made with the change's first version (each lag's columns); the final code (the
+    blocks, the select rows' SSE from the residual, ``_cancels``), run again on all 620 simulator cases and on the
+    real bench's 28 cases with a drift concealed or named, names the same effects with the same parameters."""
+    import numpy as np
+
+    def same(a, b):
+        assert _names(a) == _names(b), a["seed"]
+        for f, g in zip(a["named"], b["named"]):
+            for k, v in f["effect"].items():
+                if isinstance(v, (int, float)):
+                    assert g["effect"][k] == pytest.approx(v, rel=1e-9, abs=1e-12), (a["seed"], k)
+                elif isinstance(v, list):
+                    np.testing.assert_allclose(g["effect"][k], v, rtol=1e-9, atol=1e-12)
+
+    first = {r["seed"]: r for r in _stop41_rows()}
+    final = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-all-2026-11-28-stop41-final.json").read_text())
+    assert sorted(r["seed"] for r in final["rows"]) == sorted(first)
+    for r in final["rows"]:
+        same(first[r["seed"]], r)
+    real_first = _real_rows("2026-11-28-stop41")
+    real = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-thermal-2026-11-28-stop41-final.json").read_text())
+    assert len(real["rows"]) == 28
+    assert all(any(e["kind"] == "thermal_drift" for e in r["effects"]) or
+               any(f["kind"] == "thermal_drift" for f in r["named"]) for r in real["rows"])
+    for r in real["rows"]:
+        same(real_first[r["seed"]], r)
+    assert ("the final code, run again on all 620 simulator cases and on the real bench's 28 cases with a drift, "
+            "names the same effects with the same parameters") in " ".join(README.split())
