@@ -290,16 +290,9 @@ class MismatchSearch:
         items = self._columns_cache.get(key) if key is not None else None
         if items is None:
             w_sub = np.broadcast_to(w[motors], sel_fit.shape)[sel_fit][:, None]
-            keep = key is not None and term.band == "low"
-            if keep and term.search_caches:      # the term keeps a smaller store of its own (ThermalDrift)
-                if key not in self._stores:
-                    need = term.store_bytes(rd, j, hs, sel_fit)
-                    if self._cache_used + need <= self.CACHE_BYTES:
-                        self._stores.add(key)
-                        self._cache_used += need
-                keep = False
-            grid_columns = (term.grid_columns(rd, j, hs, sel_fit, keep=True) if key in self._stores else
-                            term.grid_columns(rd, j, hs, sel_fit))
+            # a term with a smaller store of its own (ThermalDrift) keeps that instead of these columns
+            keep = key is not None and term.band == "low" and not term.search_caches
+            grid_columns = self._term_columns(rd, term, j, hs, sel_fit, key)
             items = []
             for h, X in grid_columns:
                 kept = weighted_gram(X, w_sub)   # None: columns not finite, or all zero on these rows
@@ -324,6 +317,19 @@ class MismatchSearch:
                 best = solved
         return self._finish(rd, term, j, motors, best, len(b))
 
+    def _term_columns(self, rd: ResidualData, term: Term, j: int, hs, rows: np.ndarray, key=None):
+        """``term.grid_columns`` on ``rows``; a ladder candidate (``key``) of a torque-band term with a store of its
+        own (``Term.search_caches``) keeps that store for the next steps when its first call finds room for it
+        (``Term.store_bytes``) in ``CACHE_BYTES``."""
+        if key is not None and term.band == "low" and term.search_caches and key not in self._stores:
+            need = term.store_bytes(rd, j, hs, rows)
+            if self._cache_used + need <= self.CACHE_BYTES:
+                self._stores.add(key)
+                self._cache_used += need
+        if key in self._stores:
+            return term.grid_columns(rd, j, hs, rows, keep=True)
+        return term.grid_columns(rd, j, hs, rows)
+
     def _fit_grid_on(self, rd: ResidualData, term: Term, j: int, motors: np.ndarray, sel_fit: np.ndarray,
                      choose: np.ndarray, rw: np.ndarray, w: np.ndarray, hs, key=None):
         """:meth:`_fit_grid` for a term that picks its hyper-parameter on the select rows (``Term.hyper_on_select``):
@@ -341,17 +347,8 @@ class MismatchSearch:
         if len(motors) == 1 and term.grid_blocks:
             return self._fit_grid_blocks(rd, term, j, motors, both, on_fit, on_sel, b, b_sel, bb, w, hs, key)
         w_sub = np.broadcast_to(w[motors], both.shape)[both][:, None]
-        keep = False
-        if key is not None and term.band == "low" and term.search_caches:
-            if key not in self._stores:
-                need = term.store_bytes(rd, j, hs, both)
-                if self._cache_used + need <= self.CACHE_BYTES:
-                    self._stores.add(key)
-                    self._cache_used += need
-            keep = key in self._stores
-        columns = term.grid_columns(rd, j, hs, both, keep=True) if keep else term.grid_columns(rd, j, hs, both)
         best = None
-        for h, X in columns:
+        for h, X in self._term_columns(rd, term, j, hs, both, key):
             kept = weighted_gram(X[on_fit], w_sub[on_fit])
             if kept is None:
                 continue
