@@ -1105,6 +1105,23 @@ class ThermalDrift(Term):
         col[:, j, 1:] = FrictionRefit().columns(rd, j, None)[:, j, :]   # nested: contains the plain refit
         return col
 
+    #: The data's null (``MismatchSearch._shift_check``): heat is causal. The same column with the lag run backwards
+    #: in time (the heat source filtered from the recording's end towards its start) keeps the column's level, its
+    #: tie to the motion and its smoothness, but a temperature that rises before the heating; a drift must beat it
+    #: on the select rows by ``shift_margin``.
+    shift_lags = ("time-reversed",)
+    shift_margin = 0.10       # as the load-dependent friction's null asks (stop 42: docs/diagnosis.md)
+    shift_null, shift_claim = "its own lag run backwards in time", "a warming that follows the heat"
+
+    def shifted_columns(self, rd, j, h, lag) -> np.ndarray:
+        """:meth:`columns` with the thermal lag anti-causal (``lag`` 'time-reversed', the only null)."""
+        tc, source = h
+        a = np.exp(-1.0 / (rd.fs * tc))
+        heat = lfilter([1 - a], [1, -a], self.heat_input(rd, j, source)[::-1])[::-1]
+        col = self.columns(rd, j, h)
+        col[:, j, 0] = heat * np.nan_to_num(rd.friction_pred[:, j]) * _sliding(rd, j)
+        return col
+
     def store_bytes(self, rd, j, grid, rows):
         """The store of :meth:`grid_columns`: one filtered heat column per grid point and the two refit columns,
         on the rows."""
@@ -1226,6 +1243,7 @@ class LoadDependentFriction(Term):
     kind, extends = "load_dependent_friction", ("friction_refit",)
     shift_lags = (0.2, 0.4, 0.6, 0.8)     # shares of the recording
     shift_margin = 0.10
+    shift_null, shift_claim = "its own column shifted in time", "the tie to the load"
     uses_load = True
 
     def columns(self, rd, j, h):

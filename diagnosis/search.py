@@ -26,7 +26,8 @@ its torque to the model and ranks again, until
 no candidate passes (at most ``max_terms`` terms) — a failing first-ranked candidate never hides a passing one.
 
 A second null the data give, for a term that ties the residual to another recorded signal (``Term.shifted_columns``:
-load-dependent friction and the load): its own column with that signal shifted in time must not do as well.
+load-dependent friction and the load; a thermal drift and the heating before it): its own column with that signal
+shifted in time (for the drift: its lag run backwards, a warming before the heat) must not do as well.
 Where two candidates read the same data as one physical thing (``Term.resolve``: one point mass near the last
 axes, on either of two links), the term says which to name.
 
@@ -1066,8 +1067,8 @@ class MismatchSearch:
             cut = 1 - (1 - s.select_gain) / max(1 - best_null, 1e-12)
             if cut < term.shift_margin:
                 s.fitted.plausible = False
-                s.fitted.why_not = (f"no better than its own column shifted in time on the select rows ({s.select_gain:.1%}"
-                                    f" vs {best_null:.1%}): the gain does not come from the tie to the load")
+                s.fitted.why_not = (f"no better than {term.shift_null} on the select rows ({s.select_gain:.1%} vs "
+                                    f"{best_null:.1%}): the gain does not come from {term.shift_claim}")
 
     def predict(self, rd: ResidualData, band: str = "low") -> np.ndarray:
         """Torque (N, n) the accepted terms add to the model's prediction, in ``band`` ('low' or 'wide')."""
