@@ -2523,6 +2523,31 @@ def _real_rows(stem: str) -> dict:
     return rows
 
 
+def _real_set_figures(rows: dict) -> list:
+    """Per set of the real bench (seeds 0-59, 60-119, 120-179): effects right, effects, clean none, clean, false
+    names, thermal drifts right and concealed."""
+    got = []
+    for lo in (0, 60, 120):
+        s = bench_score([rows[k] for k in range(lo, lo + 60)])
+        th = s["confusion"]["thermal_drift"]
+        got.append((s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s), th["thermal_drift"],
+                    sum(th.values())))
+    return got
+
+
+def _same_findings(a: dict, b: dict) -> None:
+    """Two rows of one case name the same effects with the same parameters (1e-9 relative)."""
+    import numpy as np
+
+    assert _names(a) == _names(b), a["seed"]
+    for f, g in zip(a["named"], b["named"]):
+        for k, v in f["effect"].items():
+            if isinstance(v, (int, float)):
+                assert g["effect"][k] == pytest.approx(v, rel=1e-9, abs=1e-12), (a["seed"], k)
+            elif isinstance(v, list):
+                np.testing.assert_allclose(g["effect"][k], v, rtol=1e-9, atol=1e-12)
+
+
 def test_stop41_a_thermal_lag_chosen_on_the_select_rows_changes_one_simulator_case_and_reads_lags_closer():
     """Every kept simulator case diagnosed again with stop 41's change: names change in case 741 alone (its drift
     now named); the totals, 740-779's figures and the right drifts' time-constant errors as the README says."""
@@ -2576,12 +2601,7 @@ def test_stop41_the_real_bench_names_four_more_drifts_and_nothing_else_changes()
         assert diff[s][1] - diff[s][0] == {("thermal_drift", truth["joints"][0])} and diff[s][0] <= diff[s][1]
     for s in (23, 128):
         assert diff[s] == ({("torque_offset", 3)}, set())
-    got = []
-    for lo in (0, 60, 120):
-        s = bench_score([new[k] for k in range(lo, lo + 60)])
-        th = s["confusion"]["thermal_drift"]
-        got.append((s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s), th["thermal_drift"],
-                    sum(th.values())))
+    got = _real_set_figures(new)
     assert got == [(45, 75, 3, 3, 7, 6, 9), (41, 66, 11, 11, 7, 8, 10), (31, 63, 9, 9, 7, 3, 9)]
     readme = " ".join(README.split())
     assert ("four more drifts named** (72, 117, 120, 171) and no other name changed against stop 39's run of them: "
@@ -2599,16 +2619,7 @@ def test_stop41_the_final_code_names_what_the_committed_rows_name():
     """Stop 41's committed rows were made with the change's first version (each lag's columns); the final code (the
     blocks, the select rows' SSE from the residual, ``_cancels``), run again on all 620 simulator cases and on the
     real bench's 28 cases with a drift concealed or named, names the same effects with the same parameters."""
-    import numpy as np
-
-    def same(a, b):
-        assert _names(a) == _names(b), a["seed"]
-        for f, g in zip(a["named"], b["named"]):
-            for k, v in f["effect"].items():
-                if isinstance(v, (int, float)):
-                    assert g["effect"][k] == pytest.approx(v, rel=1e-9, abs=1e-12), (a["seed"], k)
-                elif isinstance(v, list):
-                    np.testing.assert_allclose(g["effect"][k], v, rtol=1e-9, atol=1e-12)
+    same = _same_findings
 
     first = {r["seed"]: r for r in _stop41_rows()}
     final = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-all-2026-11-28-stop41-final.json").read_text())
@@ -2630,21 +2641,13 @@ def test_stop42_a_drift_that_its_time_reversed_copy_matches_is_no_longer_named_o
     """Stop 42's null (a thermal drift must beat its own lag run backwards in time) can change only a case where a
     drift was named (it only makes a drift implausible, and no term extends the drift): every kept simulator case
     with a drift concealed or named, diagnosed again, names what stop 41's rows name, with the same parameters."""
-    import numpy as np
-
     old = {r["seed"]: r for r in _stop41_rows()}
     rows = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-sim-thermal-2026-11-28-stop42.json").read_text())["rows"]
     want = sorted(s for s, r in old.items() if any(e["kind"] == "thermal_drift" for e in r["effects"])
                   or any(f["kind"] == "thermal_drift" for f in r["named"]))
     assert sorted(r["seed"] for r in rows) == want and len(want) == 75
     for r in rows:
-        assert _names(r) == _names(old[r["seed"]]), r["seed"]
-        for f, g in zip(old[r["seed"]]["named"], r["named"]):
-            for k, v in f["effect"].items():
-                if isinstance(v, (int, float)):
-                    assert g["effect"][k] == pytest.approx(v, rel=1e-9, abs=1e-12)
-                elif isinstance(v, list):
-                    np.testing.assert_allclose(g["effect"][k], v, rtol=1e-9, atol=1e-12)
+        _same_findings(old[r["seed"]], r)
     assert ("the 75 kept cases with a drift concealed or named name what they named, with the same parameters"
             in " ".join(README.split()))
 
@@ -2660,12 +2663,7 @@ def test_stop42_the_real_bench_loses_four_fast_drifts_and_nothing_else_changes()
     for s, (was, now) in diff.items():
         truth = next(e for e in new[s]["effects"] if e["kind"] == "thermal_drift")
         assert was - now == {("thermal_drift", truth["joints"][0])} and now <= was
-    got = []
-    for lo in (0, 60, 120):
-        s = bench_score([new[k] for k in range(lo, lo + 60)])
-        th = s["confusion"]["thermal_drift"]
-        got.append((s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s), th["thermal_drift"],
-                    sum(th.values())))
+    got = _real_set_figures(new)
     assert got == [(43, 75, 3, 3, 7, 4, 9), (40, 66, 11, 11, 7, 7, 10), (30, 63, 9, 9, 7, 2, 9)]
     assert ("four drifts fewer (49, 55, 72, 120), nothing else changed: **43 of 75, 40 of 66, 30 of 63 (57 %, 61 %, "
             "48 %)**, clean 3 of 3, 11 of 11, 9 of 9, 7 false names in each set; thermal drifts 4 of 9, 7 of 10, 2 of 9."
