@@ -1088,21 +1088,29 @@ class ThermalDrift(Term):
             cache[(j, source)] = heat
         return cache[(j, source)]
 
-    def _heat(self, rd, j, h) -> np.ndarray:
-        """(N,) K: the temperature rise with a heating of 1 (K/A^2, K/W), the heat source through the lag ``h``."""
+    def _heat(self, rd, j, h, backwards: bool = False) -> np.ndarray:
+        """(N,) K: the temperature rise with a heating of 1 (K/A^2, K/W), the heat source through the lag ``h``;
+        ``backwards``: the lag run from the recording's end towards its start (the null, :meth:`shifted_columns`)."""
         tc, source = h
         a = np.exp(-1.0 / (rd.fs * tc))
+        if backwards:
+            return lfilter([1 - a], [1, -a], self.heat_input(rd, j, source)[::-1])[::-1]
         return lfilter([1 - a], [1, -a], self.heat_input(rd, j, source))
 
-    def _heat_column(self, rd, j, h) -> np.ndarray:
+    def _heat_column(self, rd, j, h, backwards: bool = False) -> np.ndarray:
         """Column 0 of :meth:`columns` on motor j, (N,): the heat source through the thermal lag, times the model's
         friction."""
-        return self._heat(rd, j, h) * np.nan_to_num(rd.friction_pred[:, j]) * _sliding(rd, j)
+        return self._heat(rd, j, h, backwards) * np.nan_to_num(rd.friction_pred[:, j]) * _sliding(rd, j)
 
     def columns(self, rd, j, h):
+        return self._with_refit(rd, j, self._heat_column(rd, j, h))
+
+    @staticmethod
+    def _with_refit(rd, j, heat_column: np.ndarray) -> np.ndarray:
+        """The term's columns (N, n, 3) on motor j: ``heat_column`` beside the plain refit it contains (nested)."""
         col = np.zeros((len(rd.t), rd.n, 3))
-        col[:, j, 0] = self._heat_column(rd, j, h)
-        col[:, j, 1:] = FrictionRefit().columns(rd, j, None)[:, j, :]   # nested: contains the plain refit
+        col[:, j, 0] = heat_column
+        col[:, j, 1:] = FrictionRefit().columns(rd, j, None)[:, j, :]
         return col
 
     #: The data's null (``MismatchSearch._shift_check``): heat is causal. The same column with the lag run backwards
@@ -1115,12 +1123,7 @@ class ThermalDrift(Term):
 
     def shifted_columns(self, rd, j, h, lag) -> np.ndarray:
         """:meth:`columns` with the thermal lag anti-causal (``lag`` 'time-reversed', the only null)."""
-        tc, source = h
-        a = np.exp(-1.0 / (rd.fs * tc))
-        heat = lfilter([1 - a], [1, -a], self.heat_input(rd, j, source)[::-1])[::-1]
-        col = self.columns(rd, j, h)
-        col[:, j, 0] = heat * np.nan_to_num(rd.friction_pred[:, j]) * _sliding(rd, j)
-        return col
+        return self._with_refit(rd, j, self._heat_column(rd, j, h, backwards=True))
 
     def store_bytes(self, rd, j, grid, rows):
         """The store of :meth:`grid_columns`: one filtered heat column per grid point and the two refit columns,
