@@ -2713,3 +2713,24 @@ def test_stop42_fresh_cases_820_859_read_once_with_this_release():
     readme = " ".join(README.split())
     assert ("before): 39 of 47 (83 %), clean 5 of 5, 3 false names; 33 of 37 visible effects (89 %).**") in readme
     assert "83 % on 820-859 with clean 5 of 5 (stop 42's)" in readme
+
+
+def test_stop42_fresh_cases_860_899_read_once_with_the_final_code():
+    """Cases 860-899, drawn, recorded and diagnosed once with stop 42's final code: 29 of 45, clean 5 of 5, 7 false
+    names, 27 of 36 visible; springs and plays, Stribeck and the visible misses as the README says."""
+    rows, s = _scored("fresh49-2026-11-28-stop42")
+    assert [r["seed"] for r in rows] == list(range(860, 900))
+    assert (s["effects_found"], s["effects"], s["clean_none"], s["clean"], _false(s)) == (29, 45, 5, 5, 7)
+    assert (s["visible_found"], s["visible"]) == (27, 36)
+    conf = s["confusion"]
+    assert (conf["joint_elasticity"]["joint_elasticity"], sum(conf["joint_elasticity"].values())) == (5, 11)
+    assert (conf["backlash"]["backlash"], sum(conf["backlash"].values())) == (6, 11)
+    assert (conf["stribeck"]["stribeck"], sum(conf["stribeck"].values())) == (0, 1)
+    assert sorted(m[0] for m in s["visible_missed"]) == [861, 865, 870, 879, 881, 882, 883, 892, 894]
+    swaps = sorted(m[0] for m in s["visible_missed"] if m[2] in ("joint_elasticity", "backlash")
+                   and set(m[5]) & {"joint_elasticity", "backlash"} - {m[2]})
+    assert swaps == [865, 870, 879, 892]
+    readme = " ".join(README.split())
+    assert ("29 of 45 (64 %), clean 5 of 5, 7 false names; 27 of 36 visible effects (75 %)**, the lowest fresh set so "
+            "far.") in readme
+    assert "64 % on 860-899 with clean 5 of 5 (stop 42's final code)" in readme
