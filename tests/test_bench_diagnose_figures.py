@@ -2523,6 +2523,11 @@ def _real_rows(stem: str) -> dict:
     return rows
 
 
+def _clean_key(row: dict) -> tuple:
+    """A clean-bench row as what it names: (condition, sorted (kind, joint) pairs)."""
+    return row["name"], sorted((f["kind"], f.get("joint")) for f in row["named"])
+
+
 def _real_set_figures(rows: dict) -> list:
     """Per set of the real bench (seeds 0-59, 60-119, 120-179): effects right, effects, clean none, clean, false
     names, thermal drifts right and concealed."""
@@ -2609,9 +2614,8 @@ def test_stop41_the_real_bench_names_four_more_drifts_and_nothing_else_changes()
             "each set; thermal drifts 6 of 9, 8 of 10, 3 of 9.") in readme
     clean_old = json.loads((ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-28-stop37.json").read_text())
     clean_new = json.loads((ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-28-stop41.json").read_text())
-    key = lambda r: (r["name"], sorted((f["kind"], f.get("joint")) for f in r["named"]))     # noqa: E731
-    assert [key(r) for r in clean_new["rows"]] == [key(r) for r in clean_old["rows"]]
-    assert [key(r) for r in clean_new["payload_rows"]] == [key(r) for r in clean_old["payload_rows"]]
+    assert [_clean_key(r) for r in clean_new["rows"]] == [_clean_key(r) for r in clean_old["rows"]]
+    assert [_clean_key(r) for r in clean_new["payload_rows"]] == [_clean_key(r) for r in clean_old["payload_rows"]]
     assert clean_new["summary"] == clean_old["summary"]
 
 
@@ -2619,20 +2623,18 @@ def test_stop41_the_final_code_names_what_the_committed_rows_name():
     """Stop 41's committed rows were made with the change's first version (each lag's columns); the final code (the
     blocks, the select rows' SSE from the residual, ``_cancels``), run again on all 620 simulator cases and on the
     real bench's 28 cases with a drift concealed or named, names the same effects with the same parameters."""
-    same = _same_findings
-
     first = {r["seed"]: r for r in _stop41_rows()}
     final = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-all-2026-11-28-stop41-final.json").read_text())
     assert sorted(r["seed"] for r in final["rows"]) == sorted(first)
     for r in final["rows"]:
-        same(first[r["seed"]], r)
+        _same_findings(first[r["seed"]], r)
     real_first = _real_rows("2026-11-28-stop41")
     real = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-thermal-2026-11-28-stop41-final.json").read_text())
     assert len(real["rows"]) == 28
     assert all(any(e["kind"] == "thermal_drift" for e in r["effects"]) or
                any(f["kind"] == "thermal_drift" for f in r["named"]) for r in real["rows"])
     for r in real["rows"]:
-        same(real_first[r["seed"]], r)
+        _same_findings(real_first[r["seed"]], r)
     assert ("the final code, run again on all 620 simulator cases and on the real bench's 28 cases with a drift, "
             "names the same effects with the same parameters") in " ".join(README.split())
 
@@ -2676,11 +2678,10 @@ def test_stop42_the_clean_real_drift_and_its_payload_rows_twin_are_no_longer_nam
     every other row names what stop 41's names."""
     old = json.loads((ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-28-stop41.json").read_text())
     new = json.loads((ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-28-stop42.json").read_text())
-    key = lambda r: (r["name"], sorted((f["kind"], f.get("joint")) for f in r["named"]))     # noqa: E731
     for part, changed in (("rows", "kuka_2 with the kuka_3 model"),
                           ("payload_rows", "kuka_2 + 2 kg with the kuka_3 model")):
         assert [r["name"] for r in new[part]] == [r["name"] for r in old[part]]
-        diff = [(a, b) for a, b in zip(map(key, old[part]), map(key, new[part])) if a != b]
+        diff = [(a, b) for a, b in zip(map(_clean_key, old[part]), map(_clean_key, new[part])) if a != b]
         assert len(diff) == 1 and diff[0][0][0] == changed
         assert set(diff[0][0][1]) - set(diff[0][1][1]) == {("thermal_drift", "lwr_0_joint")}
         assert set(diff[0][1][1]) <= set(diff[0][0][1])
