@@ -2256,7 +2256,9 @@ class Coupling(Term):
     def effect(self, rd, j, h, coef, std):
         i = int(h)
         a, b = float(coef[0]), float(coef[1])
-        wa, wb = 1.0 / max(std[0], 1e-300) ** 2, 1.0 / max(std[1], 1e-300) ** 2
+        # weights 1/std^2 with std floored where its square is still a float (a path whose column is zero on the
+        # fit rows has std 0: 1e-300 squared underflowed to 0 and divided by it, independent-simulator case 12)
+        wa, wb = 1.0 / max(std[0], 1e-150) ** 2, 1.0 / max(std[1], 1e-150) ** 2
         c = float((a * wa + b * wb) / (wa + wb))
         both = abs(a) > 3 * std[0] and abs(b) > 3 * std[1]
         agree = both and abs(a - b) <= self.AGREE * abs(c)

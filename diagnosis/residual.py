@@ -297,14 +297,52 @@ def split_rows(log, t: np.ndarray, keep: np.ndarray, holdout_trial: str = "valid
     return fit, sel, hold, note + " (fit : select = 2 : 1, interleaved time blocks)"
 
 
-def torque_step(drives) -> np.ndarray | None:
+def torque_step(drives, tau_motor: np.ndarray | None = None) -> np.ndarray | None:
     """One count of each drive's current read-back as a motor torque (N*m): CiA 402 reports the current in per-mille
-    of the rated current (0x6078 / 0x6075), so a count is k_t I_rated / 1000. None for joint-side torques or when the
-    drives do not give their rated current (the log then says nothing about its resolution)."""
-    rated = getattr(drives, "rated_current", None)
-    if rated is None or str(drives.torque_side) != "motor":
+    of the rated current (0x6078 / 0x6075), so a count is k_t I_rated / 1000. When the drives do not give their rated
+    current (an imported recording's drives.yaml), the count is read from the recorded motor torques ``tau_motor``
+    (N, n) themselves where they sit on a grid (:func:`torque_step_from_data`). None for joint-side torques, or when
+    neither says the resolution."""
+    if str(drives.torque_side) != "motor":
         return None
+    rated = getattr(drives, "rated_current", None)
+    if rated is None:
+        step = None if tau_motor is None else torque_step_from_data(tau_motor)
+        return step if step is not None and np.isfinite(step).any() else None
     return np.abs(np.asarray(drives.torque_constant, float)) * np.asarray(rated, float) / 1000.0
+
+
+#: a motor's torques are on a grid of step q when this share of them is within 2 % of a step of a multiple of q
+GRID_SHARE = 0.99
+
+
+def torque_step_from_data(tau_motor: np.ndarray) -> np.ndarray:
+    """Per motor, the step of the grid its recorded torques (N, n; N*m) sit on -- the read-back's resolution -- or
+    nan when they do not sit on one (nearly every value distinct, or the smallest difference between two values not
+    a common step of them). The smallest positive difference between the distinct values (above float rounding) is
+    the candidate step q; it is kept when :data:`GRID_SHARE` of the values are within 2 % of q of a multiple of q.
+
+    A recording exported with few decimals gives its print precision (the real TX40's 5e-8-1e-7 N*m): a count that
+    small never holds a term back. The independent simulator's drives report 1e-4 N*m steps
+    (scripts/bench_diagnose_foreign.py): without the count, a 2e-5 N*m torque offset on its wrist was named."""
+    tau = np.asarray(tau_motor, float)
+    out = np.full(tau.shape[1], np.nan)
+    for j in range(tau.shape[1]):
+        v = tau[:, j][np.isfinite(tau[:, j])]
+        if len(v) < 100:
+            continue
+        u = np.unique(v)
+        if len(u) > 0.98 * len(v) or len(u) < 2:
+            continue
+        d = np.diff(u)
+        d = d[d > 1e-9 * max(float(np.max(np.abs(u))), 1e-300)]
+        if not len(d):
+            continue
+        q = float(d.min())
+        x = v / q
+        if np.mean(np.abs(x - np.round(x)) < 0.02) >= GRID_SHARE:
+            out[j] = q
+    return out
 
 
 def hold_at_rest(applied: np.ndarray, friction: np.ndarray, velocity: np.ndarray, v_rest: np.ndarray,
@@ -417,7 +455,7 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
                         fit_rows=fit, holdout_rows=hold, K=K, joints=list(drives.joints), arm=arm, signals=sig,
                         split_note=note, extra={"model": model, "min_speed": min_speed},
                         select_rows=sel, min_speed_motor=v_motor, torque_side=side,
-                        torque_step_motor=torque_step(drives),
+                        torque_step_motor=torque_step(drives, tau_meas_raw),
                         at_rest=rest)
 
 

@@ -5,6 +5,13 @@ Friction and a rough URDF make the prediction imperfect, but a unit mistake is a
 least-squares scale of measured on predicted torque lands near 1000 (mN m), 1/1000, 180/pi, pi/180 or a gear ratio
 (joint torques declared motor side, or the reverse). Such a joint is refused with a one-line hint; a joint whose
 prediction explains too little of the measurement (correlation below 0.6) is not judged.
+
+Motor-side torques also carry the drive's own terms, which no URDF holds: the rotor inertia J_a (eq. 1), viscous and
+Coulomb friction. On a wrist whose link barely loads its motor they are most of the torque, and J_a theta_m_dd moves
+with the link's own inertial torque, so a plain ratio reads (J_a + I_link) / I_link: the independent simulator's TX40
+wrist (scripts/bench_diagnose_foreign.py) read 36x and was refused as "32x, a gear ratio". So on the motor side the
+scale is read on what the nominal torque holds beyond the drive terms (both projected off [theta_m_dd, theta_m_d,
+sgn theta_m_d] of the joint's own motor first), and the correlation judged is that part's.
 """
 from __future__ import annotations
 
@@ -43,8 +50,10 @@ def explain_scale(scale: float, gear_ratios) -> str | None:
     return None
 
 
-def nominal_torque(arm, t: np.ndarray, q_motor: np.ndarray, max_samples: int = 4000):
-    """Rigid-body torque of the nominal URDF along the motion, on the drives' torque side: (index, tau)."""
+def nominal_torque(arm, t: np.ndarray, q_motor: np.ndarray, max_samples: int = 4000, drive_terms: list | None = None):
+    """Rigid-body torque of the nominal URDF along the motion, on the drives' torque side: (index, tau). With a list
+    ``drive_terms``, per motor the columns of the drive's own terms at those samples are appended to it:
+    (len(index), 3) arrays [theta_m_dd, theta_m_d, sgn theta_m_d] (motor side, filtered like the joints)."""
     import pinocchio as pin
     from scipy.signal import butter, sosfiltfilt
 
@@ -56,6 +65,13 @@ def nominal_torque(arm, t: np.ndarray, q_motor: np.ndarray, max_samples: int = 4
     dq = np.gradient(qf, t, axis=0)
     ddq = np.gradient(dq, t, axis=0)
     idx = np.linspace(0, len(t) - 1, min(len(t), max_samples)).astype(int)
+    if drive_terms is not None:
+        qm = sosfiltfilt(sos, np.nan_to_num(q_motor), axis=0) if len(q_motor) > 30 else np.nan_to_num(q_motor)
+        wm = np.gradient(qm, t, axis=0)
+        am = np.gradient(wm, t, axis=0)
+        for j in range(arm.n):
+            w = wm[idx, j]
+            drive_terms.append(np.column_stack([am[idx, j], w, np.sign(np.where(np.abs(w) > 1e-3, w, 0.0))]))
     model = arm.model
     data = model.createData()
     tau = np.zeros((len(idx), arm.n))
@@ -71,7 +87,8 @@ def check_torque_units(arm, t: np.ndarray, q_motor: np.ndarray, tau_measured: np
     """Raise UnitError naming the joint and the likely mistake; returns per joint (scale, correlation)."""
     if len(t) < 50:
         return []
-    idx, tau_nom = nominal_torque(arm, t, q_motor)
+    drive = [] if arm.torque_side == "motor" else None
+    idx, tau_nom = nominal_torque(arm, t, q_motor, drive_terms=drive)
     meas = tau_measured[idx]
     gears = np.diag(arm.K)
     out = []
@@ -79,6 +96,16 @@ def check_torque_units(arm, t: np.ndarray, q_motor: np.ndarray, tau_measured: np
         ok = np.isfinite(meas[:, j])
         a, b = tau_nom[ok, j], meas[ok, j]
         a, b = a - a.mean(), b - b.mean()        # offsets (friction asymmetry, sensor bias) are not units
+        if drive is not None:                    # the part of both no rotor inertia or friction could make
+            D = drive[j][ok]
+            D = D - D.mean(axis=0)
+            D = D[:, np.linalg.norm(D, axis=0) > 0]
+            if D.shape[1]:
+                Q, _ = np.linalg.qr(D)
+                size = np.linalg.norm(a)
+                a, b = a - Q @ (Q.T @ a), b - Q @ (Q.T @ b)
+                if np.linalg.norm(a) <= 1e-6 * size:    # the drive terms make all of it: nothing to judge
+                    a = np.zeros_like(a)
         if a.std() == 0 or b.std() == 0:
             out.append((np.nan, 0.0))
             continue

@@ -225,6 +225,33 @@ def test_no_motor_counts_more_per_select_row_than_per_fit_row_in_the_gain_over_a
     assert search._why_rejected(scored(old)).startswith(f"select gain over all motors {old:.1%} < 1% (no motor")
 
 
+def test_without_a_rated_current_the_read_back_count_is_read_from_the_recorded_torques():
+    """An imported recording's drives.yaml rarely gives the rated current; the torques' own grid then says the
+    read-back's resolution (``torque_step_from_data``): a motor whose torques sit on 1e-4 N*m steps reads 1e-4, a
+    continuous one nan, and a log where no motor sits on a grid gives None (no count rule, as before)."""
+    from diagnosis.residual import torque_step, torque_step_from_data
+
+    rng = np.random.default_rng(3)
+    smooth = np.sin(np.linspace(0, 20, 5000)) * 0.3 + rng.normal(0, 0.002, 5000)
+    on_grid = np.round(smooth / 1e-4) * 1e-4
+    coarse = np.round((smooth * 2.0 + 0.05) / 2.5e-3) * 2.5e-3          # a coarser grid, another range
+    step = torque_step_from_data(np.column_stack([on_grid, smooth, coarse]))
+    assert np.isclose(step[0], 1e-4, rtol=1e-6) and np.isnan(step[1]) and np.isclose(step[2], 2.5e-3, rtol=1e-6)
+    # half the samples moved off the grid by random fractions of a step: not a grid
+    broken = on_grid.copy()
+    broken[::2] += rng.uniform(0.0, 1e-4, len(broken[::2]))
+    assert np.isnan(torque_step_from_data(broken[:, None])[0])
+    drives = SimpleNamespace(torque_constant=[1.0, 1.0, 1.0], rated_current=None, torque_side="motor")
+    got = torque_step(drives, np.column_stack([on_grid, smooth, coarse]))
+    assert np.isclose(got[0], 1e-4) and np.isnan(got[1])
+    assert torque_step(drives, np.column_stack([smooth, smooth, smooth])) is None
+    assert torque_step(SimpleNamespace(torque_constant=[1.0], rated_current=None, torque_side="joint"),
+                       on_grid[:, None]) is None
+    # a rated current still decides: the data are not read
+    rated = SimpleNamespace(torque_constant=[0.06], rated_current=[5.0], torque_side="motor")
+    assert np.allclose(torque_step(rated, on_grid[:, None]), [3e-4])
+
+
 def test_a_torque_offset_under_four_counts_of_the_current_read_back_is_not_named():
     """The data's resolution is a null: a torque offset under four counts of the drive's current read-back
     (k_t I_rated / 1000, motor side; half a count until stop 38) is the identified model's own bias or the mean other

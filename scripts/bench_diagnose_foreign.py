@@ -1,0 +1,208 @@
+#!/usr/bin/env python3
+"""Benchmark js2-diagnose on a simulator nobody on the diagnosis side wrote: confusion matrix, parameter errors.
+
+``scripts/bench_diagnose.py`` draws its cases from js2's own simulator (hil_sim): its controller, trajectories,
+friction law and arm are the ones the diagnosis was developed on. This bench draws them from ``foreign_sim``, a
+second simulator written apart from hil_sim and from the diagnosis (it shares no physics code with either; see
+foreign_sim/README.md):
+
+- another arm: the Staubli TX40 (its URDF, gear ratios with the coupled wrist, FIGAROH's friction priors), the true
+  arm's inertials and friction perturbed from the nominal URDF the user is given;
+- Karnopp stiction; a computed-torque host controller or a drive-side cascade, per case;
+- trajectories mixed from unrelated sines, point-to-point moves with rests and slow sweeps, per case;
+- recording rates 100-1000 Hz, no trial labels (the diagnosis's documented time split), some sessions split over
+  several files;
+- the effects of js2spec.effects at random joints and sizes, 0-2 per case.
+
+The user's path, with the plain commands' code: the clean identification recording is imported (js2-import) and
+identified (js2-identify, defaults); each case is imported and diagnosed (js2-diagnose, defaults). A case's
+*visibility* per effect: the share of its motor's model residual (torque band) that the effect adds, from the same
+case recorded again without its effects (same trajectory, controller and noise): 1 - mean(r_clean^2)/mean(r^2).
+
+    .venv/bin/python scripts/bench_diagnose_foreign.py [--cases 30] [--first 0] [--out runs/bench_diagnose_foreign]
+        [--rediagnose] [--no-visibility]
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT))
+
+
+def _script(name: str):
+    spec = importlib.util.spec_from_file_location(name, HERE / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+sim_bench = _script("bench_diagnose")
+URDF = ROOT / "foreign_sim" / "tx40.urdf"
+
+
+def _same_case(folder: Path, case: dict) -> bool:
+    truth = folder / "truth.json"
+    if not (truth.is_file() and (folder / "recording.npz").is_file()):
+        return False
+    try:
+        kept = dict(json.loads(truth.read_text()).get("case") or {})
+    except (OSError, ValueError):
+        return False
+    kept.pop("arm_seed", None)          # record_case adds the arm it simulated
+    return kept == json.loads(json.dumps(case))
+
+
+def record(case: dict, folder: Path) -> Path:
+    """The case's recording (``folder/recording.npz``), simulated once (kept when its truth says the same case)."""
+    from foreign_sim.record import record_case
+
+    if not _same_case(folder, case):
+        folder.mkdir(parents=True, exist_ok=True)
+        for old in folder.glob("*.mcap"):       # imports of an earlier recording
+            old.unlink()
+        record_case(case, folder, progress=False)
+    return folder
+
+
+def import_parts(folder: Path, parts: int) -> list[Path]:
+    """js2-import of ``folder/recording.npz`` (no trial labels), as ``parts`` files of one session."""
+    from identification import importer as im
+
+    rec = im.load_npz(folder / "recording.npz")
+    n = len(rec.t)
+    edges = np.linspace(0, n, parts + 1).astype(int)
+    out = []
+    for k in range(parts):
+        path = folder / (f"part_{k + 1}.mcap" if parts > 1 else "recording.mcap")
+        if not path.is_file():
+            im.write_log(im.load_npz(folder / "recording.npz"), URDF, folder / "drives.yaml", path, robot="tx40",
+                         rows=(int(edges[k]), int(edges[k + 1])) if parts > 1 else None)
+        out.append(path)
+    return out
+
+
+def identify(out: Path) -> Path:
+    """The model a user would make: the clean identification recording imported and identified (plain command)."""
+    from foreign_sim.record import identification_recording
+    from identification.cli.identify import main as identify_main
+
+    folder = out / "identification"
+    if not (folder / "recording.npz").is_file():
+        folder.mkdir(parents=True, exist_ok=True)
+        print("bench_diagnose_foreign: simulating the identification recording", file=sys.stderr, flush=True)
+        identification_recording(folder)
+    log = import_parts(folder, 1)[0]
+    model = out / "model"
+    if not (model / "model.yaml").is_file():
+        print("bench_diagnose_foreign: js2-identify (plain)", file=sys.stderr, flush=True)
+        rc = identify_main([str(log), "-o", str(model), "--no-report", "-q"])
+        if rc != 0:
+            raise SystemExit(f"bench_diagnose_foreign: js2-identify failed ({rc})")
+    return model
+
+
+def parts_of(seed: int) -> int:
+    """How many files the case's session is split into: 1 (3 cases in 4), else 2-4 (fixed by the seed)."""
+    rng = np.random.default_rng(90000 + seed)
+    return 1 if rng.uniform() < 0.75 else int(rng.integers(2, 5))
+
+
+def visibility(model: Path, logs: list[Path], clean_logs: list[Path], effects: list[dict]) -> list[float]:
+    """Per effect: 1 - mean(r_clean^2) / mean(r^2) on its motor's residual (torque band, valid rows); a payload
+    takes its largest motor."""
+    from diagnosis.residual import residual_data
+    from js2spec.log import join_logs, read_log
+    from js2spec.model import load_model
+
+    mdl = load_model(model)
+
+    def res(paths):
+        rd = residual_data(mdl, join_logs([read_log(p) for p in paths]))
+        r = np.nan_to_num(rd.lowpass(np.nan_to_num(rd.residual)))
+        return r, rd.mask
+
+    r, m = res(logs)
+    r0, m0 = res(clean_logs)
+    out = []
+    for e in effects:
+        motors = range(r.shape[1]) if e["kind"] in ("payload_change", "coupling") else [e["joints"][0]]
+        gains = []
+        for k in motors:
+            a = float(np.mean(r[m[:, k], k] ** 2)) if m[:, k].any() else 0.0
+            b = float(np.mean(r0[m0[:, k], k] ** 2)) if m0[:, k].any() else 0.0
+            gains.append(max(0.0, 1.0 - b / a) if a > 0 else 0.0)
+        out.append(max(gains))
+    return out
+
+
+def run_case(seed: int, model: Path, out: Path, rediagnose: bool = False, with_visibility: bool = True) -> dict:
+    from diagnosis.run import diagnose
+    from foreign_sim.cases import draw_case
+
+    case = draw_case(seed)
+    res_path = out / f"case_{seed:03d}.json"
+    if res_path.is_file() and not rediagnose:
+        row = json.loads(res_path.read_text())
+        if row.get("case") == json.loads(json.dumps(case)):
+            return row
+    folder = out / "cases" / f"{seed:03d}"
+    t0 = time.time()
+    record(case, folder)
+    parts = parts_of(seed)
+    logs = import_parts(folder, parts)
+    vis = None
+    if with_visibility and case["effects"]:
+        clean = dict(case, effects=[])
+        cfolder = record(clean, out / "cases" / f"{seed:03d}_clean")
+        vis = visibility(model, logs, import_parts(cfolder, parts), case["effects"])
+    t1 = time.time()
+    result = diagnose(model, logs if parts > 1 else logs[0])
+    t2 = time.time()
+    named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
+              "report_gain": f["holdout_gain"]} for f in result.findings()]
+    row = {"seed": seed, "case": case, "effects": case["effects"], "cycle_hz": float(case["rate_hz"]),
+           "files": parts, "controller": case.get("controller"), "named": named,
+           "unexplained": [u["joint_index"] for u in result.unexplained()], "visibility": vis,
+           "sim_s": round(t1 - t0, 1), "diagnose_s": round(t2 - t1, 1)}
+    res_path.write_text(json.dumps(row, default=float))
+    return row
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--cases", type=int, default=30, help="number of cases (seeds FIRST .. FIRST+CASES-1)")
+    ap.add_argument("--first", type=int, default=0, help="first seed")
+    ap.add_argument("--out", type=Path, default=Path("runs/bench_diagnose_foreign"),
+                    help="work folder: recordings, model, one JSON per case, bench.json")
+    ap.add_argument("--rediagnose", action="store_true", help="diagnose again (after a change to the diagnosis)")
+    ap.add_argument("--no-visibility", action="store_true",
+                    help="skip each case's effect-free twin recording (no visibility column)")
+    a = ap.parse_args(argv)
+    a.out.mkdir(parents=True, exist_ok=True)
+    model = identify(a.out)
+    rows = []
+    for seed in range(a.first, a.first + a.cases):
+        row = run_case(seed, model, a.out, rediagnose=a.rediagnose, with_visibility=not a.no_visibility)
+        rows.append(row)
+        got = ", ".join(f"{f['kind']} j{f['joint']}" for f in row["named"]) or "nothing"
+        want = ", ".join(f"{e['kind']} j{e['joints'][0]}" for e in row["effects"]) or "nothing"
+        vis = " ".join(f"{v:.2f}" for v in row["visibility"] or [])
+        print(f"case {seed:3d} {row['cycle_hz']:.0f} Hz x{row['files']}: concealed {want} (vis {vis or '-'}); "
+              f"named {got} ({row['diagnose_s']} s)", file=sys.stderr, flush=True)
+    s = sim_bench.score(rows)
+    sim_bench.print_report(s, rows)
+    (a.out / "bench.json").write_text(json.dumps({"score": s, "rows": rows}, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
