@@ -147,9 +147,9 @@ class Plant:
         if self.stribeck is not None:
             j, vs, sh, _ = self.stribeck
             mag[j] = fc[j] + (fs[j] - fc[j]) * np.exp(-(abs(w[j]) / vs) ** sh)
-        f = B * w + direction * mag
-        neg = direction < 0
-        return np.where(neg, f * self.neg_scale, f) if np.any(self.neg_scale != 1.0) else f
+        # asymmetric_friction (js2spec): f_c, f_s and the Stribeck hump scaled in the negative direction, not B
+        mag = np.where(direction < 0, mag * self.neg_scale, mag)
+        return B * w + direction * mag
 
     def _baseline_friction(self, w, direction):
         return self.B * w + direction * self.fc

@@ -61,3 +61,16 @@ def test_a_true_unit_mistake_is_still_refused(factor, what):
     with pytest.raises(UnitError, match=r"joint joint_[123]") as err:
         check_torque_units(arm, t, qm, tau * factor, "tx40 sim")
     assert what in str(err.value)
+
+
+def test_a_factor_on_one_motor_is_not_a_unit_mistake_but_on_most_joints_it_is():
+    """A unit mistake is the log's or the drives file's and shows on the joints alike; on a motor-side log one joint
+    reading a factor while the others read their nominal torque is that joint's model (the foreign case 12's wrist)."""
+    arm, t, qm, tau = _recording(rotor_inertia_joint4=WRIST_J)
+    one = tau.copy()
+    one[:, 1] *= 32.0                       # the shoulder alone: the elbow still reads 1
+    check_torque_units(arm, t, qm, one, "tx40 sim")
+    two = tau.copy()
+    two[:, 1:3] *= 1000.0                   # shoulder and elbow: as many wrong as right
+    with pytest.raises(UnitError, match="1000x too large"):
+        check_torque_units(arm, t, qm, two, "tx40 sim")
