@@ -20,7 +20,7 @@ identified (js2-identify, defaults); each case is imported and diagnosed (js2-di
 case recorded again without its effects (same trajectory, controller and noise): 1 - mean(r_clean^2)/mean(r^2).
 
     .venv/bin/python scripts/bench_diagnose_foreign.py [--cases 30] [--first 0] [--out runs/bench_diagnose_foreign]
-        [--rediagnose] [--no-visibility]
+        [--rediagnose] [--no-visibility] [--twins]
 """
 from __future__ import annotations
 
@@ -57,8 +57,10 @@ def _same_case(folder: Path, case: dict) -> bool:
         kept = dict(json.loads(truth.read_text()).get("case") or {})
     except (OSError, ValueError):
         return False
-    kept.pop("arm_seed", None)          # record_case adds the arm it simulated
-    return kept == json.loads(json.dumps(case))
+    want = json.loads(json.dumps(case))
+    kept.setdefault("arm_seed", 0)      # record_case writes the arm it simulated (default 0) into the case
+    want.setdefault("arm_seed", 0)
+    return kept == want
 
 
 def record(case: dict, folder: Path) -> Path:
@@ -177,6 +179,36 @@ def run_case(seed: int, model: Path, out: Path, rediagnose: bool = False, with_v
     return row
 
 
+def run_twin(seed: int, model: Path, out: Path, rediagnose: bool = False) -> dict | None:
+    """The case's effect-free twin (the visibility's recording: same arm, trajectory, controller, rate, noise and
+    file split) diagnosed as a clean case: a row with no effects, or None when the twin was never recorded (a clean
+    case has none; ``--no-visibility`` makes none)."""
+    from diagnosis.run import diagnose
+    from foreign_sim.cases import draw_case
+
+    case = draw_case(seed)
+    folder = out / "cases" / f"{seed:03d}_clean"
+    if not case["effects"] or not _same_case(folder, dict(case, effects=[])):
+        return None
+    res_path = out / f"twin_{seed:03d}.json"
+    if res_path.is_file() and not rediagnose:
+        row = json.loads(res_path.read_text())
+        if row.get("case") == json.loads(json.dumps(case)):
+            return row
+    parts = parts_of(seed)
+    logs = import_parts(folder, parts)
+    t1 = time.time()
+    result = diagnose(model, logs if parts > 1 else logs[0])
+    named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
+              "report_gain": f["holdout_gain"]} for f in result.findings()]
+    row = {"seed": seed, "case": case, "twin_of": seed, "effects": [], "cycle_hz": float(case["rate_hz"]),
+           "files": parts, "controller": case.get("controller"), "named": named,
+           "unexplained": [u["joint_index"] for u in result.unexplained()], "visibility": None,
+           "sim_s": None, "diagnose_s": round(time.time() - t1, 1)}
+    res_path.write_text(json.dumps(row, default=float))
+    return row
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cases", type=int, default=30, help="number of cases (seeds FIRST .. FIRST+CASES-1)")
@@ -186,6 +218,8 @@ def main(argv=None) -> int:
     ap.add_argument("--rediagnose", action="store_true", help="diagnose again (after a change to the diagnosis)")
     ap.add_argument("--no-visibility", action="store_true",
                     help="skip each case's effect-free twin recording (no visibility column)")
+    ap.add_argument("--twins", action="store_true",
+                    help="also diagnose each effect case's effect-free twin as a clean case (bench.json 'twins')")
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
     model = identify(a.out)
@@ -200,7 +234,21 @@ def main(argv=None) -> int:
               f"named {got} ({row['diagnose_s']} s)", file=sys.stderr, flush=True)
     s = sim_bench.score(rows)
     sim_bench.print_report(s, rows)
-    (a.out / "bench.json").write_text(json.dumps({"score": s, "rows": rows}, default=float))
+    twins = []
+    if a.twins:
+        for seed in range(a.first, a.first + a.cases):
+            row = run_twin(seed, model, a.out, rediagnose=a.rediagnose)
+            if row is None:
+                continue
+            twins.append(row)
+            got = ", ".join(f"{f['kind']} j{f['joint']}" for f in row["named"]) or "nothing"
+            print(f"twin {seed:3d} {row['cycle_hz']:.0f} Hz x{row['files']} (clean): named {got} "
+                  f"({row['diagnose_s']} s)", file=sys.stderr, flush=True)
+        t = sim_bench.score(twins)
+        print(f"clean twins (each effect case recorded again without its effects): {t['clean_none']}/{t['clean']} "
+              f"named nothing; false names {sum(t['false_names'].values())}: "
+              + ", ".join(f"{k} {v}" for k, v in t["false_names"].items() if v))
+    (a.out / "bench.json").write_text(json.dumps({"score": s, "rows": rows, "twins": twins}, default=float))
     return 0
 
 
