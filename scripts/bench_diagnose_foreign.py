@@ -21,6 +21,7 @@ case recorded again without its effects (same trajectory, controller and noise):
 
     .venv/bin/python scripts/bench_diagnose_foreign.py [--cases 30] [--first 0] [--out runs/bench_diagnose_foreign]
         [--rediagnose] [--no-visibility] [--twins]
+    .venv/bin/python scripts/bench_diagnose_foreign.py --combine OUT1/bench.json OUT2/bench.json [--write FILE]
 """
 from __future__ import annotations
 
@@ -110,6 +111,16 @@ def identify(out: Path) -> Path:
         if rc != 0:
             raise SystemExit(f"bench_diagnose_foreign: js2-identify failed ({rc})")
     return model
+
+
+def identification_figures(model: Path) -> dict:
+    """The plain model's held-out figures as model.yaml states them: js2's relative torque error on the held-out
+    rows, the OLS baseline's (eq. 1 by ordinary least squares on the same rows) and their ratio."""
+    import yaml
+
+    val = yaml.safe_load((model / "model.yaml").read_text())["validation"]
+    return {"js2": float(val["relative_error_overall"]), "ols": float(val["baseline"]["relative_error_overall"]),
+            "ratio": float(val["baseline"]["ratio_js2_to_baseline"])}
 
 
 def parts_of(seed: int) -> int:
@@ -209,6 +220,40 @@ def run_twin(seed: int, model: Path, out: Path, rediagnose: bool = False) -> dic
     return row
 
 
+def _clean_names(score: dict) -> str:
+    """What the clean recordings of a score got named, per kind (its confusion matrix's ``none`` row)."""
+    named = {k: v for k, v in score["confusion"]["none"].items() if k != "nothing" and v}
+    return ", ".join(f"{k} {v}" for k, v in named.items()) or "none"
+
+
+def combine(paths: list[Path], write: Path | None = None) -> int:
+    """Score several runs' bench.json together (e.g. seeds 0-19 and 20-39 run in two processes)."""
+    rows, twins, ident = [], [], None
+    for p in paths:
+        try:
+            d = json.loads(p.read_text())
+        except (OSError, ValueError) as exc:
+            print(f"bench_diagnose_foreign: error: {p}: {exc}", file=sys.stderr)
+            return 2
+        rows += d["rows"]
+        twins += d.get("twins", [])
+        ident = d.get("identification") or ident
+    rows.sort(key=lambda r: r["seed"])
+    twins.sort(key=lambda r: r["seed"])
+    s = sim_bench.score(rows)
+    print(f"seeds {rows[0]['seed']}-{rows[-1]['seed']} ({len(rows)} cases)")
+    sim_bench.print_report(s, rows)
+    t = sim_bench.score(twins) if twins else None
+    if t is not None:
+        print(f"clean twins: {t['clean_none']}/{t['clean']} named nothing; names on them: " + _clean_names(t))
+    clean = (s["clean_none"] + (t["clean_none"] if t else 0), s["clean"] + (t["clean"] if t else 0))
+    print(f"clean recordings (clean cases and twins): {clean[0]}/{clean[1]} named nothing")
+    if write is not None:
+        write.write_text(json.dumps({"score": s, "rows": rows, "twins": twins, "twin_score": t,
+                                     "identification": ident}, default=float))
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cases", type=int, default=30, help="number of cases (seeds FIRST .. FIRST+CASES-1)")
@@ -220,9 +265,18 @@ def main(argv=None) -> int:
                     help="skip each case's effect-free twin recording (no visibility column)")
     ap.add_argument("--twins", action="store_true",
                     help="also diagnose each effect case's effect-free twin as a clean case (bench.json 'twins')")
+    ap.add_argument("--combine", type=Path, nargs="+", metavar="BENCH_JSON",
+                    help="print the score of these runs' bench.json together (rows and twins; no diagnosis) and, "
+                         "with --write FILE, write them as one file")
+    ap.add_argument("--write", type=Path, help="with --combine: the combined file to write")
     a = ap.parse_args(argv)
+    if a.combine:
+        return combine(a.combine, a.write)
     a.out.mkdir(parents=True, exist_ok=True)
     model = identify(a.out)
+    ident = identification_figures(model)
+    print(f"js2-identify on the clean identification recording (90 s, 500 Hz): held-out relative torque error "
+          f"{ident['js2']:.2%}, the OLS baseline's {ident['ols']:.2%} (ratio {ident['ratio']:.4f})", flush=True)
     rows = []
     for seed in range(a.first, a.first + a.cases):
         row = run_case(seed, model, a.out, rediagnose=a.rediagnose, with_visibility=not a.no_visibility)
@@ -246,9 +300,9 @@ def main(argv=None) -> int:
                   f"({row['diagnose_s']} s)", file=sys.stderr, flush=True)
         t = sim_bench.score(twins)
         print(f"clean twins (each effect case recorded again without its effects): {t['clean_none']}/{t['clean']} "
-              f"named nothing; false names {sum(t['false_names'].values())}: "
-              + ", ".join(f"{k} {v}" for k, v in t["false_names"].items() if v))
-    (a.out / "bench.json").write_text(json.dumps({"score": s, "rows": rows, "twins": twins}, default=float))
+              f"named nothing; names on them: " + _clean_names(t))
+    (a.out / "bench.json").write_text(json.dumps({"score": s, "rows": rows, "twins": twins, "identification": ident},
+                                                 default=float))
     return 0
 
 
