@@ -26,7 +26,6 @@ case recorded again without its effects (same trajectory, controller and noise):
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import sys
 import time
@@ -39,14 +38,9 @@ ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 
 
-def _script(name: str):
-    spec = importlib.util.spec_from_file_location(name, HERE / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+sys.path.insert(0, str(HERE))
+import bench_diagnose as sim_bench  # noqa: E402  (the simulator bench's scoring and report)
 
-
-sim_bench = _script("bench_diagnose")
 URDF = ROOT / "foreign_sim" / "tx40.urdf"
 
 
