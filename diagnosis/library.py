@@ -2270,7 +2270,7 @@ class Coupling(Term):
         i = int(h)
         a, b = float(coef[0]), float(coef[1])
         # weights 1/std^2 with std floored where its square is still a float (a path whose column is zero on the
-        # fit rows has std 0: 1e-300 squared underflowed to 0 and divided by it, independent-simulator case 12)
+        # fit rows has std 0: 1e-300 squared underflowed to 0 and divided by it, independent-simulator case 25)
         wa, wb = 1.0 / max(std[0], 1e-150) ** 2, 1.0 / max(std[1], 1e-150) ** 2
         c = float((a * wa + b * wb) / (wa + wb))
         both = abs(a) > 3 * std[0] and abs(b) > 3 * std[1]

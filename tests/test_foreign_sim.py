@@ -195,3 +195,16 @@ def test_cases_valid_effects():
         kinds |= {e["kind"] for e in c["effects"]}
         n_eff.append(len(c["effects"]))
     assert len(kinds) >= 8 and 0 in n_eff and 2 in n_eff
+
+
+def test_asymmetric_friction_scales_the_coulomb_level_backwards_not_the_viscous(arm):
+    """js2spec's asymmetric_friction: f_c, f_s (and the hump) multiplied by negative_scale in the negative direction;
+    B is not (the first version scaled the whole backward friction)."""
+    plant = Plant(arm, [{"kind": "asymmetric_friction", "joints": [1], "negative_scale": 0.5}])
+    w = np.full(NJ, 2.0)
+    fc, fs, B = plant._friction_levels(w)
+    forward = plant._sliding(w, fc, fs, B, np.ones(NJ))
+    backward = plant._sliding(-w, fc, fs, B, -np.ones(NJ))
+    assert forward[1] == pytest.approx(B[1] * 2.0 + fc[1])
+    assert backward[1] == pytest.approx(-B[1] * 2.0 - 0.5 * fc[1])
+    assert backward[0] == pytest.approx(-forward[0])            # other motors symmetric
