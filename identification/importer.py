@@ -10,6 +10,8 @@ is ``torque / torque_constant`` (and vice versa).
 from __future__ import annotations
 
 import os
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -121,19 +123,28 @@ def load_npz(path: Path, time_key="times", position_key="positions", torque_key=
         raise ImportError_(f"{path}: is a folder; give the .npz file")
     if not path.is_file():
         raise ImportError_(f"{path}: file not found")
+    # a truncated or damaged archive fails in the zip reader (BadZipFile), or later in one member's inflate (zlib's
+    # error, EOFError) or its header (ValueError): each is said in one line, with what to do
+    damaged = (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error)
     try:
         d = np.load(path, allow_pickle=False)
         d.keys()
-    except (ValueError, OSError, EOFError) as exc:
-        raise ImportError_(f"{path}: not a NumPy .npz archive ({' '.join(str(exc).split())[:80]})") from None
+    except damaged as exc:
+        raise ImportError_(f"{path}: not a NumPy .npz archive, or a damaged one ({' '.join(str(exc).split())[:80]}); "
+                           "save it again with numpy.savez") from None
     for k in (time_key, position_key):
         if k not in d:
             raise ImportError_(f"{path}: no array {k!r} (arrays: {', '.join(d.keys())})")
-    tq = d[torque_key] if torque_key and torque_key in d else None
-    cu = d[current_key] if current_key and current_key in d else None
+    try:
+        tq = d[torque_key] if torque_key and torque_key in d else None
+        cu = d[current_key] if current_key and current_key in d else None
+        t, pos = d[time_key], d[position_key]
+    except damaged as exc:
+        raise ImportError_(f"{path}: an array in the archive cannot be read, the file is damaged or cut short "
+                           f"({' '.join(str(exc).split())[:80]}); save it again with numpy.savez") from None
     if tq is None and cu is None:
         raise ImportError_(f"{path}: neither torques ({torque_key!r}) nor currents ({current_key!r}) found")
-    return Recording(t=np.asarray(d[time_key], float), position=np.asarray(d[position_key], float),
+    return Recording(t=np.asarray(t, float), position=np.asarray(pos, float),
                      torque=None if tq is None else np.asarray(tq, float),
                      current=None if cu is None else np.asarray(cu, float), source=f"npz {path.name}")
 

@@ -12,8 +12,8 @@ with the link's own inertial torque, so a plain ratio reads (J_a + I_link) / I_l
 wrist (scripts/bench_diagnose_foreign.py) read 36x and was refused as "32x, a gear ratio". So on the motor side the
 scale is read on what the nominal torque holds beyond the drive terms (both projected off [theta_m_dd, theta_m_d,
 sgn theta_m_d] of the joint's own motor first), and the correlation judged is that part's. A factor read on fewer
-joints than read their nominal torque (scale 1/2-2), or on a single joint of a motor-side log, is not refused: a unit
-mistake shows on the joints alike.
+joints than read their nominal torque (scale 1/2-2), or a gear ratio read on a single joint of a motor-side log, is
+not refused: a unit mistake shows on the joints alike.
 """
 from __future__ import annotations
 
@@ -118,11 +118,12 @@ def check_torque_units(arm, t: np.ndarray, q_motor: np.ndarray, tau_measured: np
     wrong = [(j, s, c, explain_scale(s, gears)) for j, s, c in judged if explain_scale(s, gears)]
     right = [j for j, s, c in judged if 0.5 <= s <= 2.0]
     # a unit mistake is the log's or the drives file's, so it shows on the joints alike: one joint reading a factor
-    # while more joints read their nominal torque is that joint's model, not the units (a part of the independent
-    # simulator's case 12 read 32.8x on the TX40 wrist, correlation 0.91, with no other joint moving enough to judge;
-    # a motor-side wrist torque is mostly what no URDF holds). On the motor side a lone joint is not enough
-    lone = 1 if arm.torque_side != "motor" else 2
-    if len(wrong) >= max(lone, len(right)):
+    # while more joints read their nominal torque is that joint's model, not the units. And on the motor side a gear
+    # ratio read on one joint alone is not enough: a motor-side wrist torque is mostly what no URDF holds (a part of
+    # the independent simulator's case 12 read 32.8x on the TX40 wrist, correlation 0.91, with no other joint moving
+    # enough to judge), while 1000x or 57.3x alone still is (the same arm's shoulder in mN m reads 1060x)
+    lone_gear = arm.torque_side == "motor" and len(wrong) == 1 and "gear ratio" in wrong[0][3]
+    if wrong and not lone_gear and len(wrong) >= len(right):
         j, scale, corr, why = wrong[0]
         raise UnitError(f"{source}: joint {arm.joints[j]}: torques look {why} (measured = {scale:.4g} x what "
                         f"the nominal URDF predicts along the recorded motion, correlation {corr:.2f}); fix "

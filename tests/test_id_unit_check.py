@@ -74,3 +74,26 @@ def test_a_factor_on_one_motor_is_not_a_unit_mistake_but_on_most_joints_it_is():
     two[:, 1:3] *= 1000.0                   # shoulder and elbow: as many wrong as right
     with pytest.raises(UnitError, match="1000x too large"):
         check_torque_units(arm, t, qm, two, "tx40 sim")
+
+
+def test_a_unit_factor_on_the_only_judged_joint_is_still_refused_but_a_lone_gear_ratio_is_not():
+    """On a motor-side log a gear ratio read on one joint alone is not enough (a wrist's own drive terms can read so),
+    but 1000x is: the independent simulator's TX40 recording in mN m had only its shoulder judged, and was imported
+    without a word until this rule said so."""
+    arm, t, qm, tau = _recording(rotor_inertia_joint4=WRIST_J)
+    base = check_torque_units(arm, t, qm, tau, "tx40 sim")
+    judged = [j for j, (s, c) in enumerate(base) if c >= MIN_CORRELATION]
+    keep = judged[0]
+    # leave one judged joint: the others' torques replaced by noise (nothing to judge there)
+    rng = np.random.default_rng(0)
+    lone = tau.copy()
+    for j in range(6):
+        if j != keep:
+            lone[:, j] = rng.normal(0, 1e-3, len(t))
+    scaled = lone.copy()
+    scaled[:, keep] *= 1000.0
+    with pytest.raises(UnitError, match="1000x too large"):
+        check_torque_units(arm, t, qm, scaled, "tx40 sim")
+    gear = lone.copy()
+    gear[:, keep] *= 32.0
+    check_torque_units(arm, t, qm, gear, "tx40 sim")            # a lone gear ratio: that joint's model
