@@ -152,7 +152,6 @@ def visibility(model: Path, logs: list[Path], clean_logs: list[Path], effects: l
 
 
 def run_case(seed: int, model: Path, out: Path, rediagnose: bool = False, with_visibility: bool = True) -> dict:
-    from diagnosis.run import diagnose
     from foreign_sim.cases import draw_case
 
     case = draw_case(seed)
@@ -171,24 +170,30 @@ def run_case(seed: int, model: Path, out: Path, rediagnose: bool = False, with_v
         clean = dict(case, effects=[])
         cfolder = record(clean, out / "cases" / f"{seed:03d}_clean")
         vis = visibility(model, logs, import_parts(cfolder, parts), case["effects"])
-    t1 = time.time()
-    result = diagnose(model, logs if parts > 1 else logs[0])
-    t2 = time.time()
-    named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
-              "report_gain": f["holdout_gain"]} for f in result.findings()]
-    row = {"seed": seed, "case": case, "effects": case["effects"], "cycle_hz": float(case["rate_hz"]),
-           "files": parts, "controller": case.get("controller"), "named": named,
-           "unexplained": [u["joint_index"] for u in result.unexplained()], "visibility": vis,
-           "sim_s": round(t1 - t0, 1), "diagnose_s": round(t2 - t1, 1)}
+    row = _diagnosed(model, logs, case, effects=case["effects"], visibility=vis, sim_s=round(time.time() - t0, 1))
     res_path.write_text(json.dumps(row, default=float))
     return row
+
+
+def _diagnosed(model: Path, logs: list[Path], case: dict, **fields) -> dict:
+    """The row of one diagnosis (the plain defaults) of ``logs``, one session: what was named, where structure is
+    left unexplained, the time it took, and ``fields`` (effects, visibility, ...)."""
+    from diagnosis.run import diagnose
+
+    t1 = time.time()
+    result = diagnose(model, logs if len(logs) > 1 else logs[0])
+    named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
+              "report_gain": f["holdout_gain"]} for f in result.findings()]
+    return {"seed": case["seed"], "case": case, "cycle_hz": float(case["rate_hz"]), "files": len(logs),
+            "controller": case.get("controller"), "named": named,
+            "unexplained": [u["joint_index"] for u in result.unexplained()], **fields,
+            "diagnose_s": round(time.time() - t1, 1)}
 
 
 def run_twin(seed: int, model: Path, out: Path, rediagnose: bool = False) -> dict | None:
     """The case's effect-free twin (the visibility's recording: same arm, trajectory, controller, rate, noise and
     file split) diagnosed as a clean case: a row with no effects, or None when the twin was never recorded (a clean
     case has none; ``--no-visibility`` makes none)."""
-    from diagnosis.run import diagnose
     from foreign_sim.cases import draw_case
 
     case = draw_case(seed)
@@ -200,16 +205,8 @@ def run_twin(seed: int, model: Path, out: Path, rediagnose: bool = False) -> dic
         row = json.loads(res_path.read_text())
         if row.get("case") == json.loads(json.dumps(case)):
             return row
-    parts = parts_of(seed)
-    logs = import_parts(folder, parts)
-    t1 = time.time()
-    result = diagnose(model, logs if parts > 1 else logs[0])
-    named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
-              "report_gain": f["holdout_gain"]} for f in result.findings()]
-    row = {"seed": seed, "case": case, "twin_of": seed, "effects": [], "cycle_hz": float(case["rate_hz"]),
-           "files": parts, "controller": case.get("controller"), "named": named,
-           "unexplained": [u["joint_index"] for u in result.unexplained()], "visibility": None,
-           "sim_s": None, "diagnose_s": round(time.time() - t1, 1)}
+    row = _diagnosed(model, import_parts(folder, parts_of(seed)), case, twin_of=seed, effects=[], visibility=None,
+                     sim_s=None)
     res_path.write_text(json.dumps(row, default=float))
     return row
 
