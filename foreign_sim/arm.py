@@ -1,7 +1,8 @@
 """The true Staubli TX40 of one bench: perturbed URDF inertials, perturbed friction priors, transmission.
 
-Everything here is independent of the rest of the project: kinematics from ``tx40.urdf`` (a copy of FIGAROH's
-``tx40_mdh_modified.urdf``), transmission from ``drives.yaml`` (a copy of the TX40 example), friction priors from
+Its physics is independent of the rest of the project (it reads data only): kinematics from ``tx40.urdf`` (a copy of FIGAROH's
+``tx40_mdh_modified.urdf``), transmission from the TX40's one drives file (identification/examples/staubli_tx40/
+drives.yaml, data, not code: the arm's gear matrix and offsets as FIGAROH converts them), friction priors from
 FIGAROH's published ``TX40_config.yaml`` (joint side, converted to the motor side here).
 """
 from __future__ import annotations
@@ -14,7 +15,7 @@ import yaml
 
 HERE = Path(__file__).resolve().parent
 URDF = HERE / "tx40.urdf"
-DRIVES = HERE / "drives.yaml"
+DRIVES = HERE.parent / "identification" / "examples" / "staubli_tx40" / "drives.yaml"
 NJ = 6
 
 # FIGAROH TX40_config.yaml (identification.robot_params), JOINT side

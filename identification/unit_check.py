@@ -114,9 +114,9 @@ def check_torque_units(arm, t: np.ndarray, q_motor: np.ndarray, tau_measured: np
         corr = float(np.corrcoef(a, b)[0, 1])
         scale = float(a @ b / (a @ a))
         out.append((scale, corr))
-    judged = [(j, s, c) for j, (s, c) in enumerate(out) if c >= MIN_CORRELATION]
-    wrong = [(j, s, c, explain_scale(s, gears)) for j, s, c in judged if explain_scale(s, gears)]
-    right = [j for j, s, c in judged if 0.5 <= s <= 2.0]
+    judged = [(j, s, c, explain_scale(s, gears)) for j, (s, c) in enumerate(out) if c >= MIN_CORRELATION]
+    wrong = [x for x in judged if x[3]]
+    right = [j for j, s, c, _ in judged if 0.5 <= s <= 2.0]
     # a unit mistake is the log's or the drives file's, so it shows on the joints alike: one joint reading a factor
     # while more joints read their nominal torque is that joint's model, not the units. And on the motor side a gear
     # ratio read on one joint alone is not enough: a motor-side wrist torque is mostly what no URDF holds (a part of

@@ -74,16 +74,15 @@ def import_parts(folder: Path, parts: int) -> list[Path]:
     """js2-import of ``folder/recording.npz`` (no trial labels), as ``parts`` files of one session."""
     from identification import importer as im
 
-    rec = im.load_npz(folder / "recording.npz")
-    n = len(rec.t)
-    edges = np.linspace(0, n, parts + 1).astype(int)
-    out = []
-    for k in range(parts):
-        path = folder / (f"part_{k + 1}.mcap" if parts > 1 else "recording.mcap")
+    out = [folder / (f"part_{k + 1}.mcap" if parts > 1 else "recording.mcap") for k in range(parts)]
+    if all(p.is_file() for p in out):
+        return out
+    rec = im.load_npz(folder / "recording.npz")          # read once; write_log slices it, never changes it
+    edges = np.linspace(0, len(rec.t), parts + 1).astype(int)
+    for k, path in enumerate(out):
         if not path.is_file():
-            im.write_log(im.load_npz(folder / "recording.npz"), URDF, folder / "drives.yaml", path, robot="tx40",
+            im.write_log(rec, URDF, folder / "drives.yaml", path, robot="tx40",
                          rows=(int(edges[k]), int(edges[k + 1])) if parts > 1 else None)
-        out.append(path)
     return out
 
 
