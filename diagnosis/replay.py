@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hil_sim.replay import forward_replay, inverse_replay, model_plant, rms_per_joint
+from hil_sim.replay import forward_replay, inverse_replay, model_holds_unclipped, model_plant, rms_per_joint
 from js2spec.effects import EFFECT_KINDS
 
 from .run import DiagnosisResult
@@ -29,7 +29,7 @@ def replay_torques(res: DiagnosisResult, effects: list[dict]) -> np.ndarray:
     off_motor = off @ rd.K if rd.torque_side == "joint" else off       # offsets on the log's side -> motor side
     # at rest the friction holds the recorded torque up to f_s, as the diagnosis predicts (hold_at_rest)
     tau = inverse_replay(plant, rd.t, rd.q_motor, rd.dq_motor, rd.ddq_motor, tau_recorded=rd.tau_meas_raw - off_motor,
-                         v_rest=rd.min_speed_motor).tau_motor
+                         v_rest=rd.min_speed_motor, hold_unclipped=model_holds_unclipped(res.model)).tau_motor
     tau = tau + off_motor
     return rd.signals.filter_like_torque(np.nan_to_num(tau))
 

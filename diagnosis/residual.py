@@ -345,15 +345,30 @@ def torque_step_from_data(tau_motor: np.ndarray) -> np.ndarray:
     return out
 
 
+def hold_limit(f_static: np.ndarray) -> np.ndarray:
+    """The most torque the model's friction holds at rest, per motor (its side and units): its f_s (eq. 2-3) where
+    the static breakaway test identified one, no limit (inf) where the model has none (the simultaneous method, a
+    plain recording with no trial labels).
+
+    A model without f_s does not know how much its friction holds: clipping there at f_c (until stop 44) made the
+    prediction wrong at every rest where the arm's stiction held more than f_c. The drive's torque climbs over f_c
+    before the axis breaks away, the clipped prediction does not, and the torque filter spread that step into the
+    moving rows beside it as a ringing burst: on the foreign simulator's clean recordings (Karnopp stiction, no
+    static test) 80-90 % of the scored residual lay within 50 ms of a rest, and the search named plays, coggings
+    and asymmetries on it."""
+    f_static = np.asarray(f_static, float)
+    return np.where(np.isfinite(f_static), f_static, np.inf)
+
+
 def hold_at_rest(applied: np.ndarray, friction: np.ndarray, velocity: np.ndarray, v_rest: np.ndarray,
-                 f_static: np.ndarray, f_coulomb: np.ndarray) -> np.ndarray:
+                 f_static: np.ndarray) -> np.ndarray:
     """The model's friction with its breakaway level (eq. 2-3): where a motor is at rest (|velocity| below
     ``v_rest``) friction holds whatever torque the rest of the model leaves (``applied``: measured torque minus the
-    rigid-body, inertia and offset parts), up to f_s (f_c where f_s was not identified); elsewhere ``friction``
-    (B v + f_c sgn v). Arrays (N, n), one side, SI. Rows at rest are never scored, but the torque filter spreads
-    them into the slow rows next to them: a sliding law there smears a friction the arm did not have (the
-    excess looked like a Stribeck curve on clean recordings)."""
-    limit = np.where(np.isfinite(f_static), f_static, f_coulomb)
+    rigid-body, inertia and offset parts), up to f_s (:func:`hold_limit`: no limit where f_s was not identified);
+    elsewhere ``friction`` (B v + f_c sgn v). Arrays (N, n), one side, SI. Rows at rest are never scored, but the
+    torque filter spreads them into the slow rows next to them: a sliding law there smears a friction the arm did
+    not have (the excess looked like a Stribeck curve on clean recordings)."""
+    limit = hold_limit(f_static)
     rest = at_rest(velocity, v_rest[None, :])
     held = np.clip(np.nan_to_num(applied), -limit[None, :], limit[None, :])
     return np.where(rest & np.isfinite(applied), held, friction)
@@ -423,7 +438,7 @@ def residual_data(model: IdentifiedModel, log, *, holdout_trial: str = "validati
     rigid_side = rigid_joint[rows] if side == "joint" else rigid_motor[rows]
     v_rest = np.full(n, float(min_speed)) if side == "joint" else v_motor
     held = hold_at_rest(sig.tau_raw[rows] - rigid_side - (pred_side[rows] - fric_side[rows]), fric_side[rows],
-                        v_side, v_rest, model.friction_static, model.friction_coulomb)
+                        v_side, v_rest, model.friction_static)
     pred_side[rows] += held - fric_side[rows]
     fric_side[rows] = held
     tau_pred = to_motor(pred_side)

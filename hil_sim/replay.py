@@ -76,6 +76,12 @@ def model_motor_side(model, drives) -> dict:
     return {"motor_inertia": ja, "viscous": b, "coulomb": fc, "static": np.maximum(fs, fc)}
 
 
+def model_holds_unclipped(model) -> np.ndarray:
+    """Per motor: whether the model's friction holds all the recorded torque at rest in the inverse replay (it
+    identified no f_s), as the diagnosis predicts it (:func:`diagnosis.residual.hold_limit`)."""
+    return ~np.isfinite(np.asarray(model.friction_static, float))
+
+
 def model_plant(model, drives, effects=None, effects_source=None) -> Plant:
     """The identified model as a :class:`Plant`: its URDF (``<dynamics>`` tags dropped: the model's friction replaces
     them), ``J_a``, ``B``, ``f_c``, ``f_s`` of ``model.yaml``, no sensor noise, plus ``effects`` (config list)."""
@@ -104,13 +110,15 @@ class InverseReplay:
 
 
 def inverse_replay(plant: Plant, t, q_motor, dq_motor, ddq_motor, tau_recorded=None,
-                   v_rest=None) -> InverseReplay:
+                   v_rest=None, hold_unclipped=None) -> InverseReplay:
     """Motor torques the plant needs to follow ``(q_motor, dq_motor, ddq_motor)`` sampled at times ``t`` (module
     docstring). Rows with a NaN give NaN and leave the state (temperature, deflections) as it was.
 
     At rest the torque a motion needs is not one number: friction holds anything up to f_s. With ``tau_recorded``
     (motor side, N*m) and ``v_rest`` (rad/s per motor), a motor slower than ``v_rest`` gets the friction that holds
-    the recorded torque, clipped at its f_s (eq. 2-3; what :func:`diagnosis.residual.hold_at_rest` predicts)."""
+    the recorded torque, clipped at its f_s (eq. 2-3; what :func:`diagnosis.residual.hold_at_rest` predicts); a
+    motor marked in ``hold_unclipped`` (bool per motor: :func:`model_holds_unclipped`, the model identified no f_s)
+    holds all of it."""
     q_motor, dq_motor, ddq_motor = (np.asarray(x, float) for x in (q_motor, dq_motor, ddq_motor))
     hold = tau_recorded is not None and v_rest is not None
     if hold:
@@ -185,7 +193,8 @@ def inverse_replay(plant: Plant, t, q_motor, dq_motor, ddq_motor, tau_recorded=N
             rest = resting[s] & np.isfinite(tau_recorded[s])
             if rest.any():
                 other = tau - friction_prev
-                held = np.clip(tau_recorded[s] - other, -fs, fs)
+                lim = fs if hold_unclipped is None else np.where(hold_unclipped, np.inf, fs)
+                held = np.clip(tau_recorded[s] - other, -lim, lim)
                 friction_prev = np.where(rest, held, friction_prev)
                 tau = other + friction_prev
         out[s] = tau
@@ -384,7 +393,8 @@ def replay_recording(recording, model_path, effects_path=None, min_speed: float 
     for eff in ([[]] + ([effects] if effects_path is not None else [])):
         plant = model_plant(model, drives, eff, effects_path)
         rep = inverse_replay(plant, sig.t, sig.q_motor, sig.dq_motor, ddq_motor,
-                             tau_recorded=tau_held if hold_at_rest else None, v_rest=v_rest)
+                             tau_recorded=tau_held if hold_at_rest else None, v_rest=v_rest,
+                             hold_unclipped=model_holds_unclipped(model))
         runs.append(to_log_side(rep.tau_motor, drives, off))
         if forward:
             fwd.append(forward_replay(model_plant(model, drives, eff, effects_path), sig.t, sig.q_motor,

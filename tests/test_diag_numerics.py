@@ -143,19 +143,44 @@ def test_band_shares_put_a_residual_in_the_band_it_lives_in(fs):
 
 def test_at_rest_the_model_friction_holds_the_applied_torque_up_to_breakaway():
     """Eq. 2-3 in the prediction: a motor at rest gets the friction that holds what the rest of the model leaves,
-    clipped at f_s (f_c where the simultaneous method left f_s out); moving motors keep B v + f_c sgn v."""
-    from diagnosis.residual import hold_at_rest
+    clipped at f_s; where the model has no f_s (the simultaneous method, a recording with no static test) it holds
+    all of it, whatever it is; moving motors keep B v + f_c sgn v."""
+    from diagnosis.residual import hold_at_rest, hold_limit
 
     velocity = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, 3.0], [0.0, np.nan]])      # motor side, rad/s
     sliding = np.array([[0.0, 0.0], [0.02, 0.0], [0.0, -0.03], [0.0, 0.0]])       # B v + f_c sgn v
     applied = np.array([[0.01, -0.08], [0.05, 0.02], [-0.04, 0.5], [0.03, 0.01]])  # measured minus the rest
-    held = hold_at_rest(applied, sliding, velocity, v_rest=np.array([1.0, 1.0]),
-                        f_static=np.array([0.03, np.nan]), f_coulomb=np.array([0.02, 0.05]))
-    expected = np.array([[0.01, -0.05],      # held exactly; the second clipped at its f_c (no f_s identified)
+    held = hold_at_rest(applied, sliding, velocity, v_rest=np.array([1.0, 1.0]), f_static=np.array([0.03, np.nan]))
+    expected = np.array([[0.01, -0.08],      # held exactly; the second is not clipped (no f_s identified)
                          [0.03, 0.02],       # 0.5 rad/s is still below v_rest: held, clipped at f_s = 0.03
                          [-0.03, -0.03],     # the second motor turns: its sliding friction stays
                          [0.03, 0.01]])      # an unknown velocity counts as rest (its rows are never scored)
     assert np.allclose(held, expected)
+    assert hold_limit(np.array([0.03, np.nan])).tolist() == [0.03, np.inf]
+
+
+def test_no_breakaway_burst_where_the_model_has_no_f_s():
+    """A model without f_s (no static test) whose arm's stiction holds more than its f_c before each breakaway:
+    the prediction holds the applied torque at rest, so the torque filter has no step to spread into the moving
+    rows beside the rest (clipped at f_c, as until stop 44, the burst is most of the moving rows' residual)."""
+    from diagnosis.residual import hold_at_rest
+    from identification.signals import FilterSettings, lowpass
+
+    fs_hz, fc = 500.0, 0.2
+    t = np.arange(0, 4, 1 / fs_hz)
+    v = np.where((t % 1.0) < 0.4, 0.0, np.sin(np.pi * ((t % 1.0) - 0.4) / 0.6) * 5)[:, None]   # rest, then a move
+    rest_speed = np.array([0.05])
+    measured = np.where(np.abs(v) < rest_speed, 0.3 * np.minimum(1, (t[:, None] % 1.0) / 0.4), fc + 0.01 * v)
+    sliding = fc * np.sign(v) + 0.01 * v
+    moving = (np.abs(v[:, 0]) >= rest_speed[0])
+
+    def burst(f_static):
+        pred = hold_at_rest(measured, sliding, v, rest_speed, f_static=f_static)
+        r = lowpass(measured - pred, FilterSettings().fc_acceleration_hz, fs_hz)   # the 7 Hz torque filter
+        return float(np.sqrt(np.mean(r[moving, 0] ** 2)))
+
+    assert burst(np.array([np.nan])) < 1e-9                 # held exactly: the moving rows' residual is the model's
+    assert burst(np.array([fc])) > 0.005                    # clipped at f_c: a 0.1 N*m step at each breakaway
 
 
 @pytest.mark.parametrize("fs", [250.0, 500.0, 1000.0])
@@ -972,6 +997,61 @@ def test_a_mass_that_only_stands_in_for_a_constant_goes_and_the_constant_stays()
     # the same reading without the limit: the offset goes (the rule of case 151), the mass stays
     search = _payload_and_offset(flat, const, N)
     assert [s.fitted.kind for s in search.accepted_] == ["payload_change"]
+
+
+def test_an_offset_the_mass_cannot_take_stays_beside_it_though_it_moves_the_mass():
+    """MismatchSearch._drop_confounded with ``OFFSET_LEFT`` (independent-simulator case 39: 2.87 kg on link 6 and
+    -0.25 N*m on motor 2; the offset moved the mass from 3.9 to 2.81 kg and was dropped, leaving motor 2 with 0.25
+    of its 0.32 N*m). Motor 2 carries the mass's torque, which varies there, plus a large constant: fitted without
+    the offset the mass reads high (it takes what of the constant its column can) and motor 2 keeps most of its
+    residual, so the two are two readings: both stay, and the mass is read with the offset."""
+    N = 6000
+    rng = np.random.default_rng(7)
+    t = np.arange(N) / 500.0
+    elbow = 0.3 + np.sin(2 * np.pi * 0.2 * t)
+    search = _payload_and_offset(elbow, lambda x: 0.4 * x + np.stack([np.zeros(N), np.full(N, 0.5)], axis=1)
+                                 + rng.normal(0, 2e-4, (N, 2)), N)
+    assert sorted(s.fitted.kind for s in search.accepted_) == ["payload_change", "torque_offset"]
+    assert not search.dropped_
+    mass = next(s for s in search.accepted_ if s.fitted.kind == "payload_change").fitted.coef[0]
+    offset = next(s for s in search.accepted_ if s.fitted.kind == "torque_offset").fitted.coef[0]
+    assert mass == pytest.approx(0.4, abs=0.002) and offset == pytest.approx(0.5, abs=0.002)
+    # a smaller constant the mass takes more of (without it, motor 2 keeps 20 % of its residual): it goes
+    search = _payload_and_offset(elbow, lambda x: 0.4 * x + np.stack([np.zeros(N), np.full(N, 0.3)], axis=1)
+                                 + rng.normal(0, 2e-4, (N, 2)), N)
+    assert [s.fitted.kind for s in search.accepted_] == ["payload_change"] and len(search.dropped_) == 1
+    # the rule's other side is test_an_offset_that_moves_the_payloads_mass_is_dropped_...: a mass that takes
+    # nearly all of the motor's constant (case 151) still has the offset dropped
+
+
+def test_an_offset_is_accepted_before_a_payload_that_passes_only_on_its_motor():
+    """MismatchSearch._simpler_first (independent-simulator case 55: 0.038 N*m on motor 3, no payload; a 0.78 kg
+    'payload' on link 3 ranked first on the gain over all motors, 22 % against the offset's 17 %). A payload whose
+    select-row gain on its other motors is under ``min_gain`` gives way to a passing offset on the motor where it
+    explains most, when the offset explains at least as much there; a payload that passes on its other motors
+    too keeps its place, and so does one with no such offset."""
+    from diagnosis.library import Fitted, PayloadChange, TorqueOffset
+    from diagnosis.search import MismatchSearch, Scored
+
+    def scored(term, kind, j, own=0.9, per_motor=()):
+        f = Fitted(kind=kind, joint=j, hyper=None, coef=np.array([0.1]), coef_std=np.array([1e-3]), effect={},
+                   summary=f"{kind} on j{j + 1} (x)", plausible=True, why_not="")
+        return Scored(fitted=f, fit_gain=0.5, select_gain=0.5, select_gain_all=0.2, holdout_gain=0.5,
+                      rms_before=np.ones(6), rms_after=np.ones(6), band="low", term=term, select_gain_own=own,
+                      select_per_motor=per_motor)
+
+    search = MismatchSearch()
+    before = np.array([1435.6, 1549.1, 1604.2, 1438.8, 1493.6, 1757.7])       # case 55's weighted select sums
+    case55 = np.array([666.3, 1837.6, 183.4, 1438.8, 1493.6, 1757.7])
+    mass = scored(PayloadChange(), "payload_change", 2, per_motor=(np.arange(6), before, case55))
+    offset = scored(TorqueOffset(), "torque_offset", 2, own=0.9986)
+    got = search._simpler_first(mass, [mass, offset])
+    assert got is offset and "before a payload on link 3" in got.note and "89%" in got.note
+    assert search._simpler_first(mass, [mass, scored(TorqueOffset(), "torque_offset", 2, own=0.85)]) is mass
+    assert search._simpler_first(mass, [mass, scored(TorqueOffset(), "torque_offset", 1, own=0.9986)]) is mass
+    real = before * np.array([0.5, 0.6, 0.1, 0.7, 0.8, 0.9])               # a mass loading every motor
+    wide = scored(PayloadChange(), "payload_change", 2, per_motor=(np.arange(6), before, real))
+    assert search._simpler_first(wide, [wide, offset]) is wide
 
 
 def test_a_payload_that_makes_one_motor_much_worse_is_refused_by_the_ladder():
