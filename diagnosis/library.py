@@ -274,8 +274,9 @@ def weighted_gram(X: np.ndarray, w) -> tuple[np.ndarray, np.ndarray] | None:
     matrix G = A^T A; None where G is not finite (a simulated link that diverged) or every column is zero on these
     rows (G's diagonal: their sums of squares). The one rule the search (``MismatchSearch._fit_grid``) and a term's
     own normal equations (:meth:`Cogging.grid_gram`) keep a grid point by."""
-    A = X * w
-    G = A.T @ A                      # normal equations on the (k x k) Gram matrix: few columns, many rows
+    with np.errstate(over="ignore", invalid="ignore"):     # a column past the floats is refused below, silently
+        A = X * w
+        G = A.T @ A                  # normal equations on the (k x k) Gram matrix: few columns, many rows
     if not np.all(np.isfinite(G)) or not np.any(np.diagonal(G)):
         return None
     return A, G

@@ -475,8 +475,13 @@ class MismatchSearch:
             return None
         h, coef, std, contrib = fitted_grid
         # gains: only the term's motors change; sums per motor, the others' from the shared statistics
-        left = r[:, motors] - contrib                                 # (N, m) what the term leaves
-        new_w = left * w[motors]
+        with np.errstate(over="ignore", invalid="ignore"):
+            left = r[:, motors] - contrib                             # (N, m) what the term leaves
+            new_w = left * w[motors]
+            # a reading whose torque leaves the floats on some rows (its columns, fitted elsewhere, grow without
+            # bound there: an independent-simulator twin's overflow warning) is no reading of the recording
+            if not np.all(np.isfinite(new_w)) or float(np.max(np.abs(new_w), initial=0.0)) > 1e150:
+                return None
         old_w = rw[:, motors]
 
         def sums(x, m):

@@ -587,3 +587,32 @@ def test_stop42_speed_figures_are_the_committed_runs():
             f"{_cols(a, 4)} s") in readme
     assert (f"- Speed: {_cols(a, 2)}x the 30 s goal (stop 42's three runs; the stop-41 code {_cols(b, 2)}x in the "
             "same session): not met in one run of each") in readme
+
+
+def test_a_reading_whose_torque_leaves_the_floats_is_no_candidate(rd):
+    """A term whose columns are ordinary on the fit rows but grow without bound elsewhere (independent-simulator
+    twins 87 and 99 printed numpy's overflow warning from the search, and a NaN gain passes every '<' test) is
+    dropped from the ranking, silently; a sound term beside it is still ranked."""
+    import warnings
+
+    from diagnosis.library import Term, TorqueOffset
+    from diagnosis.search import MismatchSearch
+
+    class Blowup(Term):
+        kind = "blowup"
+
+        def columns(self, rd_, j_, h_):
+            col = np.zeros((len(rd_.t), rd_.n, 1))
+            late = rd_.t > 0.9 * rd_.t[-1]             # the report rows' end: far from the fit rows
+            col[:, j_, 0] = np.where(late, 1e300, np.sin(rd_.t))
+            return col
+
+        def effect(self, rd_, j_, h_, coef, std):
+            return {"kind": self.kind, "joints": [j_]}, "blowup", True, ""
+
+    search = MismatchSearch(library=(Blowup(), TorqueOffset()), max_terms=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        search.fit(rd)
+    ranked = [s.fitted.kind for step in search.rankings_ for s in step]
+    assert "blowup" not in ranked and "torque_offset" in ranked
