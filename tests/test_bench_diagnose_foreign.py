@@ -93,3 +93,66 @@ def test_the_printed_reports_are_the_rows():
         assert f"seeds {first}-{last} (40 cases)" in text
         assert f"right effect and joint: {s['effects_found']}/{s['effects']}" in text
         assert f"clean twins: {t['clean_none']}/{t['clean']} named nothing" in text
+
+
+def _set44(name: str):
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_diagnose
+
+    d = json.loads((BENCH / f"diagnose-bench-{name}-2026-11-28-stop44.json").read_text())
+    return d, bench_diagnose.score(d["rows"]), bench_diagnose.score(d["twins"])
+
+
+@pytest.mark.parametrize("name,seeds,found,false,clean,twins", [
+    ("foreign", range(0, 40), (37, 62), 5, (2, 2), (36, 38)),
+    ("foreign-fresh", range(40, 80), (17, 48), 14, (5, 6), (31, 34)),
+    ("foreign-new", range(80, 100), (11, 19), 1, (5, 6), (13, 14)),
+])
+def test_stop44_the_readme_figures_are_the_committed_rows(name, seeds, found, false, clean, twins):
+    d, s, t = _set44(name)
+    assert [r["seed"] for r in d["rows"]] == list(seeds)
+    assert all(r["effects"] == [] and r["twin_of"] == r["seed"] for r in d["twins"])
+    assert (s["effects_found"], s["effects"]) == found
+    assert sum(s["false_names"].values()) == false
+    assert (s["clean_none"], s["clean"]) == clean and (t["clean_none"], t["clean"]) == twins
+    assert ("**Cases 0-39: 37 of 62 (60 %), 5 false names, clean 38 of 40; cases 40-79: 17 of 48 (35 %), 14 false "
+            "names, clean 36 of 40; cases 80-99 (drawn at this stop; case 90 was read for the asymmetry rule): 11 of 19 "
+            "(58 %), 1 false name, clean 18 of 20.**") in README
+
+
+def test_stop44_fewer_false_plays_and_more_clean_recordings_over_0_79():
+    """Stop 44 against stop 43, the same recordings: the plays named where none was concealed (cases) 9 -> 4, the
+    clean recordings (clean cases and twins) naming nothing 68 -> 74 of 80, right names 53 -> 54 of 110; the per-kind
+    figures the README gives."""
+    def sets(loader):
+        (_, a, ta), (_, b, tb) = loader("foreign"), loader("foreign-fresh")
+        return a, b, ta, tb
+
+    a3, b3, ta3, tb3 = sets(_set)
+    a4, b4, ta4, tb4 = sets(_set44)
+    assert a3["false_names"]["backlash"] + b3["false_names"]["backlash"] == 9
+    assert a4["false_names"]["backlash"] + b4["false_names"]["backlash"] == 4
+    assert sum(x["clean_none"] for x in (a3, b3, ta3, tb3)) == 68 and sum(x["clean_none"] for x in (a4, b4, ta4, tb4)) == 74
+    assert a3["effects_found"] + b3["effects_found"] == 53 and a4["effects_found"] + b4["effects_found"] == 54
+
+    def both(kind):
+        return tuple(sum(v) for v in zip(_hits(a4, kind), _hits(b4, kind)))
+
+    assert both("cogging") == (13, 15) and both("torque_offset") == (12, 12) and both("stribeck") == (3, 7)
+    assert both("backlash") == (2, 11) and both("payload_change") == (7, 12)
+    masses = [e["mass"]["rel_error"] for e in a4["param_errors"]["payload_change"] + b4["param_errors"]["payload_change"]]
+    assert (sum(abs(m) <= 0.05 for m in masses), len(masses)) == (7, 7)
+    assert ("the false plays fell from 9 to 4 and the clean recordings naming nothing rose from 68 to 74 of 80; right "
+            "names 54 of 110 (53 at stop 43): cogging 13 of 15, torque offsets 12 of 12, Stribeck 3 of 7, plays 2 of "
+            "11, payloads 7 of 12 (masses within 5 % on all 7)") in README
+
+
+def test_stop44_the_cases_the_rules_were_read_on_name_their_truth():
+    """Foreign case 39 (payload 2.87 kg on link 6 and -0.25 N*m on motor 2: both, the mass within 5 %), 55 (the offset
+    on motor 3, no payload) and 90 (the offset, not an asymmetry), in the committed stop-44 rows."""
+    rows = {r["seed"]: r for name in ("foreign", "foreign-fresh", "foreign-new") for r in _set44(name)[0]["rows"]}
+    named = {s: sorted((f["kind"], f["joint"]) for f in rows[s]["named"]) for s in (39, 55, 90)}
+    assert named[39] == [("payload_change", 5), ("torque_offset", 1)]
+    mass = next(f["effect"]["mass"] for f in rows[39]["named"] if f["kind"] == "payload_change")
+    assert abs(mass / 2.8711543315197408 - 1) < 0.05
+    assert named[55] == [("torque_offset", 2)] and named[90] == [("torque_offset", 2)]
