@@ -33,7 +33,7 @@ from identification.trials import trial_spans
 from js2spec.drives import at_rest, motor_rest_speed
 from js2spec.errors import Js2Error
 from js2spec.log import read_log
-from js2spec.model import IdentifiedModel
+from js2spec.model import IdentifiedModel, friction_hold_limit as hold_limit  # noqa: F401  (hold_limit: the rule, re-exported)
 
 from .filter_kernel import filtfilt_rows_into, filtfilt_rows_kernel
 
@@ -345,29 +345,14 @@ def torque_step_from_data(tau_motor: np.ndarray) -> np.ndarray:
     return out
 
 
-def hold_limit(f_static: np.ndarray) -> np.ndarray:
-    """The most torque the model's friction holds at rest, per motor (its side and units): its f_s (eq. 2-3) where
-    the static breakaway test identified one, no limit (inf) where the model has none (the simultaneous method, a
-    plain recording with no trial labels).
-
-    A model without f_s does not know how much its friction holds: clipping there at f_c (until stop 44) made the
-    prediction wrong at every rest where the arm's stiction held more than f_c. The drive's torque climbs over f_c
-    before the axis breaks away, the clipped prediction does not, and the torque filter spread that step into the
-    moving rows beside it as a ringing burst: on a clean recording of the foreign simulator (Karnopp stiction, no
-    static test; twin 8) 81-88 % of four motors' scored residual lay within 50 ms of a rest, on 8-9 % of the rows,
-    and the search named plays, coggings and asymmetries on it."""
-    f_static = np.asarray(f_static, float)
-    return np.where(np.isfinite(f_static), f_static, np.inf)
-
-
 def hold_at_rest(applied: np.ndarray, friction: np.ndarray, velocity: np.ndarray, v_rest: np.ndarray,
                  f_static: np.ndarray) -> np.ndarray:
     """The model's friction with its breakaway level (eq. 2-3): where a motor is at rest (|velocity| below
     ``v_rest``) friction holds whatever torque the rest of the model leaves (``applied``: measured torque minus the
-    rigid-body, inertia and offset parts), up to f_s (:func:`hold_limit`: no limit where f_s was not identified);
-    elsewhere ``friction`` (B v + f_c sgn v). Arrays (N, n), one side, SI. Rows at rest are never scored, but the
-    torque filter spreads them into the slow rows next to them: a sliding law there smears a friction the arm did
-    not have (the excess looked like a Stribeck curve on clean recordings)."""
+    rigid-body, inertia and offset parts), up to f_s (:func:`js2spec.model.friction_hold_limit`: no limit where f_s
+    was not identified); elsewhere ``friction`` (B v + f_c sgn v). Arrays (N, n), one side, SI. Rows at rest are
+    never scored, but the torque filter spreads them into the slow rows next to them: a sliding law there smears a
+    friction the arm did not have (the excess looked like a Stribeck curve on clean recordings)."""
     limit = hold_limit(f_static)
     rest = at_rest(velocity, v_rest[None, :])
     held = np.clip(np.nan_to_num(applied), -limit[None, :], limit[None, :])

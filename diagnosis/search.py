@@ -475,21 +475,21 @@ class MismatchSearch:
             return None
         h, coef, std, contrib = fitted_grid
         # gains: only the term's motors change; sums per motor, the others' from the shared statistics
+        fm = self._float_masks(rd, motors)
         with np.errstate(over="ignore", invalid="ignore"):
             left = r[:, motors] - contrib                             # (N, m) what the term leaves
             new_w = left * w[motors]
-            # a reading whose torque leaves the floats on some rows (its columns, fitted elsewhere, grow without
-            # bound there: an independent-simulator twin's overflow warning) is no reading of the recording
-            if not np.all(np.isfinite(new_w)) or float(np.max(np.abs(new_w), initial=0.0)) > 1e150:
-                return None
+            sq_new = new_w * new_w
+            s1 = {name: np.einsum("ij,ij->j", sq_new, fm[name]) for name in rows}
+        # a reading whose torque leaves the floats on some rows (its columns, fitted elsewhere, grow without bound
+        # there: two independent-simulator twins printed numpy's overflow warning) is no reading of the recording;
+        # its NaN gains would pass every '<' test
+        if not all(np.all(np.isfinite(v)) for v in s1.values()):
+            return None
         old_w = rw[:, motors]
 
         def sums(x, m):
             return np.einsum("ij,ij->j", x, np.where(m, x, 0.0))
-
-        fm = self._float_masks(rd, motors)
-        sq_new = new_w * new_w
-        s1 = {name: np.einsum("ij,ij->j", sq_new, fm[name]) for name in rows}
         if tuple(coef_rows) == ("fit_rows",):     # sel_fit is the fit rows' mask
             fit_old, fit_new = np.einsum("ij,ij->j", old_w * old_w, fm["fit_rows"]), s1["fit_rows"]
         else:

@@ -42,6 +42,7 @@ import pinocchio as pin
 
 from js2spec.drives import at_rest, motor_rest_speed
 from js2spec.errors import ConfigError, Js2Error
+from js2spec.model import friction_hold_limit
 
 from .effects import parse_effects
 from .plant import Plant
@@ -78,8 +79,8 @@ def model_motor_side(model, drives) -> dict:
 
 def model_holds_unclipped(model) -> np.ndarray:
     """Per motor: whether the model's friction holds all the recorded torque at rest in the inverse replay (it
-    identified no f_s), as the diagnosis predicts it (:func:`diagnosis.residual.hold_limit`)."""
-    return ~np.isfinite(np.asarray(model.friction_static, float))
+    identified no f_s: :func:`js2spec.model.friction_hold_limit`), as the diagnosis predicts it."""
+    return np.isinf(friction_hold_limit(model.friction_static))
 
 
 def model_plant(model, drives, effects=None, effects_source=None) -> Plant:

@@ -16,6 +16,22 @@ import numpy as np
 from .errors import ConfigError
 
 
+def friction_hold_limit(f_static: np.ndarray) -> np.ndarray:
+    """The most torque a model's friction holds at rest, per motor (the model's side and units): its f_s (eq. 2-3)
+    where the static breakaway test identified one, no limit (inf) where the model has none (the simultaneous
+    method, a plain recording with no trial labels). The one rule the diagnosis' prediction
+    (:func:`diagnosis.residual.hold_at_rest`) and hil_sim's replay (:func:`hil_sim.replay.inverse_replay`) hold by.
+
+    A model without f_s does not know how much its friction holds: clipping there at f_c (until stop 44) made the
+    prediction wrong at every rest where the arm's stiction held more than f_c. The drive's torque climbs over f_c
+    before the axis breaks away, the clipped prediction does not, and the torque filter spread that step into the
+    moving rows beside it as a ringing burst: on a clean recording of the foreign simulator (Karnopp stiction, no
+    static test; twin 8) 81-88 % of four motors' scored residual lay within 50 ms of a rest, on 8-9 % of the rows,
+    and the search named plays, coggings and asymmetries on it."""
+    f_static = np.asarray(f_static, float)
+    return np.where(np.isfinite(f_static), f_static, np.inf)
+
+
 @dataclass(frozen=True, eq=False)
 class IdentifiedModel:
     path: Path
