@@ -35,7 +35,8 @@ class JointNormalEquations:
         return sum(self.parts[p][0].sum(axis=0) for p in parts)[np.ix_(ix, ix)]
 
     def solve(self, subset, parts) -> tuple[np.ndarray, np.ndarray]:
-        """(columns, coefficients) of the least squares of the terms ``subset`` on the rows of ``parts``."""
+        """(columns, coefficients) of the least squares of the terms ``subset`` on the rows of ``parts`` (no terms: no
+        columns and no coefficients, whose ``sse`` is the residual's own)."""
         ix = self.index(subset)
         Ab = sum(self.parts[p][1].sum(axis=0) for p in parts)[ix]
         return ix, np.linalg.lstsq(self.gram(ix, parts), Ab, rcond=None)[0]

@@ -33,7 +33,7 @@ from identification.trials import trial_spans
 from js2spec.drives import at_rest, motor_rest_speed
 from js2spec.errors import Js2Error
 from js2spec.log import read_log
-from js2spec.model import IdentifiedModel, friction_hold_limit as hold_limit  # noqa: F401  (hold_limit: the rule, re-exported)
+from js2spec.model import IdentifiedModel, friction_hold_limit
 
 from .filter_kernel import filtfilt_rows_into, filtfilt_rows_kernel
 
@@ -353,7 +353,7 @@ def hold_at_rest(applied: np.ndarray, friction: np.ndarray, velocity: np.ndarray
     was not identified); elsewhere ``friction`` (B v + f_c sgn v). Arrays (N, n), one side, SI. Rows at rest are
     never scored, but the torque filter spreads them into the slow rows next to them: a sliding law there smears a
     friction the arm did not have (the excess looked like a Stribeck curve on clean recordings)."""
-    limit = hold_limit(f_static)
+    limit = friction_hold_limit(f_static)
     rest = at_rest(velocity, v_rest[None, :])
     held = np.clip(np.nan_to_num(applied), -limit[None, :], limit[None, :])
     return np.where(rest & np.isfinite(applied), held, friction)

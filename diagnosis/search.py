@@ -1013,7 +1013,7 @@ class MismatchSearch:
         base = [q for q in others if order[q].fitted.kind != "payload_change"]
 
         def left(terms):
-            ix, coef = eq.solve(terms, ["fit_rows"]) if terms else (np.array([], dtype=int), np.zeros(0))
+            ix, coef = eq.solve(terms, ["fit_rows"])      # no terms: no columns, the residual as it is
             return float(eq.sse("select_rows", ix, coef)[motor])
         return left(others) / max(left(base), 1e-300)
 
@@ -1039,7 +1039,7 @@ class MismatchSearch:
             return None
         ix, coef = eq.solve(subset, ["fit_rows"])
         others = [q for q in subset if q != k]
-        ix0, coef0 = eq.solve(others, ["fit_rows"]) if others else (np.array([], dtype=int), np.zeros(0))
+        ix0, coef0 = eq.solve(others, ["fit_rows"])
         m, ratio = _worst_ratio(eq.sse("select_rows", ix0, coef0), eq.sse("select_rows", ix, coef))
         return (m, ratio) if ratio > limit else None
 

@@ -145,7 +145,8 @@ def test_at_rest_the_model_friction_holds_the_applied_torque_up_to_breakaway():
     """Eq. 2-3 in the prediction: a motor at rest gets the friction that holds what the rest of the model leaves,
     clipped at f_s; where the model has no f_s (the simultaneous method, a recording with no static test) it holds
     all of it, whatever it is; moving motors keep B v + f_c sgn v."""
-    from diagnosis.residual import hold_at_rest, hold_limit
+    from diagnosis.residual import hold_at_rest
+    from js2spec.model import friction_hold_limit
 
     velocity = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, 3.0], [0.0, np.nan]])      # motor side, rad/s
     sliding = np.array([[0.0, 0.0], [0.02, 0.0], [0.0, -0.03], [0.0, 0.0]])       # B v + f_c sgn v
@@ -156,7 +157,7 @@ def test_at_rest_the_model_friction_holds_the_applied_torque_up_to_breakaway():
                          [-0.03, -0.03],     # the second motor turns: its sliding friction stays
                          [0.03, 0.01]])      # an unknown velocity counts as rest (its rows are never scored)
     assert np.allclose(held, expected)
-    assert hold_limit(np.array([0.03, np.nan])).tolist() == [0.03, np.inf]
+    assert friction_hold_limit(np.array([0.03, np.nan])).tolist() == [0.03, np.inf]
 
 
 def test_no_breakaway_burst_where_the_model_has_no_f_s():
