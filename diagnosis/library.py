@@ -46,7 +46,7 @@ from identification.base import base_parameters
 
 from .link_kernel import link_torques
 from .ripple_kernel import ripple_columns, ripple_dots
-from .residual import ResidualData
+from .residual import ResidualData, motor_rows
 
 
 @dataclass
@@ -545,7 +545,7 @@ class Stribeck(Term):
         ranked = sorted(by_shape.values(), key=lambda c: c.select_gain, reverse=True)
         win, other = ranked[0], ranked[1]
         sse_ratio = max(1.0 - other.select_gain, 0.0) / max(1.0 - win.select_gain, 1e-12)
-        rows = rd.select_rows & rd.mask[:, j]
+        rows = motor_rows(rd.select_rows, j) & rd.mask[:, j]
         n_eff = 2.0 * float(rd.signals.settings.fc_acceleration_hz) * float(rows.sum()) / rd.fs
         evidence = 0.5 * n_eff * float(np.log(max(sse_ratio, 1.0)))
         pick = win if evidence >= self.RESOLVED else (two or win)
@@ -609,7 +609,7 @@ class Cogging(Term):
         """Period counts p (per motor revolution) of which the motor sweeps at least ``MIN_PERIODS`` whole periods
         within the angles it covers (a slower function of the angle is a function of the pose: a rigid-body model
         error on a direct drive or a joint-side encoder, not a ripple), up to what the encoder resolves."""
-        th = rd.q_motor[rd.fit_rows | rd.select_rows, j]
+        th = rd.q_motor[motor_rows(rd.fit_rows, j) | motor_rows(rd.select_rows, j), j]
         th = th[np.isfinite(th)]
         span = float(th.max() - th.min()) if len(th) else 0.0
         steps = np.abs(np.diff(th))
@@ -820,7 +820,7 @@ class CoggingPassBand(CoggingWide):
 
     def grid(self, rd, j):
         periods = super().grid(rd, j)
-        w = np.abs(_moving(rd, j))[rd.fit_rows]
+        w = np.abs(_moving(rd, j))[motor_rows(rd.fit_rows, j)]
         return [(p, f) for p in periods for f in self.PASS_HZ
                 if int(np.count_nonzero((w > 0) & (w <= self.top_speed((p, f))))) >= self.MIN_ROWS]
 
@@ -1275,11 +1275,19 @@ class LoadDependentFriction(Term):
         col[:, j, 0] = _sgn(_moving(rd, j)) * np.roll(load, int(round(lag * len(load))))
         return col
 
+    #: mu = (1 - eta) / eta for a gear of efficiency eta under load: 2 is eta = 1/3 (a worm gear's; harmonic
+    #: drives run at 0.6-0.85 under light load, mu 0.2-0.7). 0.5 until stop 45, which refused every one of the
+    #: independent simulator's wrist frictions drawn at mu = 1 (case 85: fit, select and report gains 0.99, 0.99,
+    #: 0.95, refused as implausible).
+    MAX_COEFFICIENT = 2.0
+
     def effect(self, rd, j, h, coef, std):
-        ok = 3 * std[0] < coef[0] < 0.5          # mu: a friction coefficient of the gear's load, well below 1
+        ok = 3 * std[0] < coef[0] < self.MAX_COEFFICIENT       # mu: positive, significant, a gear's efficiency
+        why = ("" if ok else "load coefficient not positive/significant" if coef[0] <= 3 * std[0] else
+               f"load coefficient {coef[0]:.3g} above {self.MAX_COEFFICIENT:g} (a gear of efficiency under "
+               f"{1 / (1 + self.MAX_COEFFICIENT):.0%})")
         return ({"kind": self.kind, "joints": [j], "coefficient": float(coef[0])},
-                f"friction grows by {coef[0]:.3g} N*m per N*m of transmitted load", ok,
-                "" if ok else "load coefficient not positive/significant")
+                f"friction grows by {coef[0]:.3g} N*m per N*m of transmitted load", ok, why)
 
 
 class AsymmetricFriction(Term):
@@ -2162,7 +2170,7 @@ class ElasticRattle(BacklashRattle):
         cache = rd.extra.setdefault("elastic_rattle_weights", {})
         if j not in cache:
             col = self.columns(rd, j, None)[:, j, 0]
-            m = rd.mask[:, j] & (rd.fit_rows | rd.select_rows)
+            m = rd.mask[:, j] & (motor_rows(rd.fit_rows, j) | motor_rows(rd.select_rows, j))
             cache[j] = (col[m] ** 2, np.clip(np.nan_to_num(_mass_column(rd, j)[:, j]), 1e-9, None)[m])
         wt, M = cache[j]
         w2 = (2 * np.pi * self.oscillation(rd, j)[1]) ** 2

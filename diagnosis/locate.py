@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import periodogram
 
-from .residual import ResidualData
+from .residual import ResidualData, part_rows
 
 # frequency bands of a residual, Hz: what each usually holds on an arm moved by smooth trials
 FREQUENCY_BANDS = ((0.0, 0.5, "below 0.5 Hz (drift, slow trends)"), (0.5, 2.0, "0.5-2 Hz (the motion's own rate)"),
@@ -82,9 +82,8 @@ def locate(rd: ResidualData, search=None, min_drop: float = 0.10) -> dict:
     terms cut its held-out residual by at least ``min_drop``, or — with nothing accepted — a candidate term reaches
     the search's ``min_gain`` on the select rows without passing every other test). RMS figures: report rows."""
     r = np.nan_to_num(rd.residual)
-    rows = rd.fit_rows | rd.holdout_rows
-    m = rd.mask & rows[:, None]
-    mh = rd.mask & rd.holdout_rows[:, None]
+    m = rd.mask & (part_rows(rd.fit_rows, rd.n) | part_rows(rd.holdout_rows, rd.n))
+    mh = rd.mask & part_rows(rd.holdout_rows, rd.n)
     # each motor's before/after in the band its findings were proven in (a play's rattle, cogging ripple: unfiltered)
     motor_band = search.motor_bands(rd) if search is not None else ["low"] * rd.n
     r_band = {"low": r, "wide": np.nan_to_num(rd.residual_wide)}

@@ -13,6 +13,7 @@ import numpy as np
 from hil_sim.replay import forward_replay, inverse_replay, model_holds_unclipped, model_plant, rms_per_joint
 from js2spec.effects import EFFECT_KINDS
 
+from .residual import part_rows
 from .run import DiagnosisResult
 
 ROWS = ("report rows (never seen by the search), moving samples of each motor, motor side, in the torque band "
@@ -64,26 +65,27 @@ def replay_section(res: DiagnosisResult) -> tuple[dict, dict]:
     skipped = [e.get("kind") for e in found if e.get("kind") not in EFFECT_KINDS]
     tau0 = replay_torques(res, [])
     tau1 = replay_torques(res, sim) if sim else tau0
-    rows = rd.holdout_rows[:, None] & rd.mask
+    rows = part_rows(rd.holdout_rows, rd.n) & rd.mask
     before = rms_per_joint(rd.tau_meas - tau0, rows)
     after = rms_per_joint(rd.tau_meas - tau1, rows)
-    scale = rms_per_joint(rd.tau_meas - tau0, rd.fit_rows[:, None] & rd.mask)
+    scale = rms_per_joint(rd.tau_meas - tau0, part_rows(rd.fit_rows, rd.n) & rd.mask)
     w = np.where(np.isfinite(scale) & (scale > 0), 1.0 / np.where(scale > 0, scale, 1.0) ** 2, 0.0)
     ok = np.isfinite(before) & np.isfinite(after)
     den = float(np.sum(w[ok] * before[ok] ** 2))
     gain = 1.0 - float(np.sum(w[ok] * after[ok] ** 2)) / den if den > 0 else None
     arrays = {"tau_model": tau0, "tau_effects": tau1, "rows": rows}
     fwd = {}
-    report = rd.holdout_rows & rd.signals.keep
+    report = part_rows(rd.holdout_rows, rd.n) & rd.signals.keep[:, None]     # (N, n): each motor's report rows
     for key, eff in (("model", []), ("model_effects", sim)):
         if key == "model_effects" and not sim:
             fwd[key] = fwd["model"]
             continue
         q_sim, tau_pd = forward_positions(res, eff)
         err = np.where(np.isfinite(q_sim), (rd.q_motor - q_sim) @ rd.K.T, np.nan)
-        fwd[key] = {"position_rms": rms_per_joint(err, report[:, None] & np.ones_like(err, bool)).tolist(),
-                    "tracking_torque_rms": rms_per_joint(tau_pd, report[:, None] & np.ones_like(err, bool)).tolist(),
-                    "followed": float(np.mean(np.isfinite(q_sim[report, 0]))) if report.any() else 0.0}
+        fwd[key] = {"position_rms": rms_per_joint(err, report).tolist(),
+                    "tracking_torque_rms": rms_per_joint(tau_pd, report).tolist(),
+                    "followed": (float(np.mean(np.isfinite(q_sim[report.any(axis=1), 0]))) if report.any()
+                                 else 0.0)}
     return {"mode": "inverse dynamics: the recorded motion prescribed, the simulator's torque compared",
             "rows": ROWS, "joints": rd.joints,
             "effects": sim, "not_simulated": skipped,

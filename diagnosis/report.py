@@ -13,6 +13,7 @@ import yaml
 from identification.report import html_table, png_base64, pyplot
 from js2spec.effects import parse_effects, units_comment
 
+from .residual import motor_rows
 from .run import DiagnosisResult
 
 FRICTION_KINDS = {"stribeck", "asymmetric_friction", "thermal_drift", "load_dependent_friction"}
@@ -58,7 +59,7 @@ def fig_finding(res: DiagnosisResult, k: int):
     sc = res.accepted[k]
     f = sc.fitted
     i = int(f.effect["joints"][0]) if f.kind != "payload_change" else int(np.argmax(sc.rms_before - sc.rms_after))
-    rows = np.flatnonzero(rd.holdout_rows & rd.mask[:, i])
+    rows = np.flatnonzero(motor_rows(rd.holdout_rows, i) & rd.mask[:, i])
     corr = res.search.predict(rd, sc.band)
     meas = rd.tau_meas if sc.band == "low" else rd.tau_meas_raw
     pred = rd.tau_pred if sc.band == "low" else rd.tau_pred_raw

@@ -12,7 +12,7 @@ from js2spec.model import IdentifiedModel, load_model
 
 from .library import LIBRARY, ThermalDrift, model_data_library
 from .locate import band_shares, dominant_band, locate
-from .residual import ResidualData, own_offsets, residual_data
+from .residual import ResidualData, own_offsets, part_rows, residual_data
 from .search import MismatchSearch, Scored, _on_motors
 
 
@@ -82,8 +82,8 @@ class DiagnosisResult:
             "model": str(self.model.path), "recording": str(self.log_path),
             "recordings": [str(p) for p in (self.log_paths or [self.log_path])],
             "split": self.rd.split_note,
-            "rows": {"fit": int(self.rd.fit_rows.sum()), "select": int(self.rd.select_rows.sum()),
-                     "report": int(self.rd.holdout_rows.sum())},
+            "rows": {name: int((self.rd.mask & part_rows(rows, self.rd.n)).any(axis=1).sum()) for name, rows in
+                     (("fit", self.rd.fit_rows), ("select", self.rd.select_rows), ("report", self.rd.holdout_rows))},
             "sample_rate_hz": self.rd.fs,
             "filters_hz": {"velocity": self.rd.signals.settings.fc_velocity_hz,
                            "acceleration_and_torque": self.rd.signals.settings.fc_acceleration_hz},

@@ -48,7 +48,7 @@ import numpy as np
 
 from .backfit import JointNormalEquations
 from .library import KINDS, LIBRARY, REFERENCE_KINDS, Fitted, Term, weighted_gram
-from .residual import ResidualData
+from .residual import ResidualData, part_rows
 
 
 @dataclass
@@ -192,7 +192,7 @@ class MismatchSearch:
         """(N, n) masks of the fit, select and report rows, made once per recording."""
         cached = getattr(self, "_masks", None)
         if cached is None or cached[0] is not rd:
-            cached = self._masks = (rd, {name: rd.mask & getattr(rd, name)[:, None]
+            cached = self._masks = (rd, {name: rd.mask & part_rows(getattr(rd, name), rd.n)
                                          for name in ("fit_rows", "select_rows", "holdout_rows")})
         return cached[1]
 
@@ -573,9 +573,9 @@ class MismatchSearch:
     # -- the ladder -------------------------------------------------------------------------------------------------
     def fit(self, rd: ResidualData) -> "MismatchSearch":
         res = {"low": np.nan_to_num(rd.residual), "wide": np.nan_to_num(rd.residual_wide)}
-        m_fit = rd.mask & rd.fit_rows[:, None]
-        m_sel = rd.mask & rd.select_rows[:, None]
-        m_rep = rd.mask & rd.holdout_rows[:, None]
+        m_fit = rd.mask & part_rows(rd.fit_rows, rd.n)
+        m_sel = rd.mask & part_rows(rd.select_rows, rd.n)
+        m_rep = rd.mask & part_rows(rd.holdout_rows, rd.n)
         weights = {}
         for band, r in res.items():
             rms = _rms(r, m_fit)
@@ -1151,7 +1151,7 @@ class MismatchSearch:
         motor in ``band`` ('low', 'wide', or 'own': each motor in its :meth:`motor_bands` band; weighted by the
         band's fit-rows RMS, so the two bands add on one scale)."""
         bands = self.motor_bands(rd) if band == "own" else [band] * rd.n
-        m = rd.mask & getattr(rd, rows)[:, None]
+        m = rd.mask & part_rows(getattr(rd, rows), rd.n)
         s0 = s1 = 0.0
         for b in sorted(set(bands)):               # a fixed order: the same sum to the last bit on every run
             cols = np.array([x == b for x in bands])

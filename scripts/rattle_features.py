@@ -35,7 +35,7 @@ def features(model, path: Path, j: int) -> dict:
     from scipy.stats import kurtosis
 
     from diagnosis.library import BacklashRattle, _gear_side
-    from diagnosis.residual import residual_data
+    from diagnosis.residual import motor_rows, residual_data
     from js2spec.log import join_logs, read_log
 
     rd = residual_data(model, join_logs([read_log(path)]))
@@ -44,7 +44,7 @@ def features(model, path: Path, j: int) -> dict:
     col = BacklashRattle().columns(rd, j, None)[:, j, 0]
     wide = rd.residual_wide[:, j]
     above = wide - rd.lowpass(wide[:, None])[:, 0]
-    m = rd.mask[:, j] & (rd.fit_rows | rd.select_rows)
+    m = rd.mask[:, j] & (motor_rows(rd.fit_rows, j) | motor_rows(rd.select_rows, j))
     x, y = col[m], above[m]
     if not np.any(x):
         raise ValueError(f"{rd.joints[j]}: the rattle's column is zero on every usable row")

@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 
+from diagnosis.residual import part_rows
 from fixtures_diag import clean_model, recording
 
 
@@ -53,7 +54,7 @@ def test_a_coupling_into_the_hand_joint_is_below_the_noise():
     from diagnosis.library import Coupling
 
     rd = _diagnose([]).rd
-    m = rd.mask & rd.fit_rows[:, None]
+    m = rd.mask & part_rows(rd.fit_rows, rd.n)
     res = np.nan_to_num(rd.residual)
 
     def rms(x):

@@ -98,7 +98,9 @@ def test_terms_are_fitted_on_one_trajectory_and_selected_and_reported_on_another
     log = read_log(recording("[]"))
     rd = residual_data(load_model(clean_model()), log)
     exc, val = _trial_rows(log, rd.t, "excitation"), _trial_rows(log, rd.t, "validation")
-    fit, sel, rep = rd.fit_rows, rd.select_rows, rd.holdout_rows
+    for part in (rd.fit_rows, rd.select_rows, rd.holdout_rows):        # labelled: every motor has the same rows
+        assert part.shape == rd.mask.shape and (part == part[:, :1]).all()
+    fit, sel, rep = rd.fit_rows[:, 0], rd.select_rows[:, 0], rd.holdout_rows[:, 0]
     assert fit.any() and not (fit & ~exc).any()
     assert sel.any() and rep.any() and not ((sel | rep) & ~val).any()
     assert not (sel & rep).any() and not (fit & (sel | rep)).any()

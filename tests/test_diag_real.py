@@ -85,10 +85,12 @@ def test_validation_only_recording_gets_a_documented_time_split(kuka):
     assert log.trials() == ["validation"]
     rd = residual_data(load_model(kuka["model"]), log)
     assert "time split" in rd.split_note and "'validation' trial is the whole recording" in rd.split_note
-    fit, sel, rep = rd.fit_rows, rd.select_rows, rd.holdout_rows
+    fit, sel, rep = rd.fit_rows.any(axis=1), rd.select_rows.any(axis=1), rd.holdout_rows.any(axis=1)
     assert fit.sum() > 1000 and sel.sum() > 400 and rep.sum() > 800
-    assert not (fit & sel).any() and not (fit & rep).any() and not (sel & rep).any()
-    assert rd.t[rep].min() > rd.t[fit | sel].max()                   # the report part is the end of the recording
+    for j in range(rd.n):                                            # per motor: no row in two parts
+        fit, sel, rep = rd.fit_rows[:, j], rd.select_rows[:, j], rd.holdout_rows[:, j]
+        assert not (fit & sel).any() and not (fit & rep).any() and not (sel & rep).any()
+        assert rd.t[rep].min() > rd.t[fit | sel].max()               # the report part is the end of the recording
 
 
 @pytest.mark.parametrize("which", [1, 2, 3])
@@ -313,7 +315,7 @@ def test_prediction_carries_the_exported_offsets_and_sqrt_viscous_friction(kuka,
     m0 = load_model(kuka["model"])
     rd0 = residual_data(m0, log)
     # the model's own recording: no shoulder offset left over (the base off_2 was 2.7 N*m away from the export's)
-    rep = rd0.mask[:, 1] & rd0.holdout_rows
+    rep = rd0.mask[:, 1] & rd0.holdout_rows[:, 1]
     assert abs(np.mean(rd0.residual[rep, 1])) < 0.5
     d = dict(m0.raw)
     d["torque_offset"] = [v + (1.0 if k == 2 else 0.0) for k, v in enumerate(d["torque_offset"])]

@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from diagnosis.residual import part_rows
 from fixtures_diag import clean_model, recording
 
 
@@ -202,7 +203,7 @@ def test_cogging_gram_is_the_columns(rd, kind):
     from diagnosis.library import Cogging, CoggingWide
 
     term, j = (Cogging() if kind == "low" else CoggingWide()), 3
-    rows = (rd.mask & rd.fit_rows[:, None])[:, [j]]                 # the search's fit rows on motor j
+    rows = (rd.mask & part_rows(rd.fit_rows, rd.n))[:, [j]]                 # the search's fit rows on motor j
     grid = term.grid(rd, j)
     assert len(grid) > 10
     rng = np.random.default_rng(5)

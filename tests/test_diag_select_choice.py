@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from diagnosis.residual import part_rows
 from fixtures_diag import clean_model, recording
 
 
@@ -25,7 +26,7 @@ def _search(rd, res):
     from diagnosis.search import MismatchSearch, _rms
 
     search = MismatchSearch()
-    m_fit = rd.mask & rd.fit_rows[:, None]
+    m_fit = rd.mask & part_rows(rd.fit_rows, rd.n)
     weights = {}
     for band, r in res.items():
         rms = _rms(r, m_fit)
@@ -72,7 +73,7 @@ def test_the_lag_kept_is_the_one_the_select_rows_prefer(rd):
 
     span = float(rd.t[-1] - rd.t[0])
     assert rd.fit_rows.any() and rd.select_rows.any()
-    assert rd.t[rd.select_rows].min() > rd.t[rd.fit_rows].max()        # the validation trial comes after
+    assert rd.t[rd.select_rows.any(axis=1)].min() > rd.t[rd.fit_rows.any(axis=1)].max()   # validation comes after
     tau = 0.8 * span
     term, j = ThermalDrift(), 0
     res = _drifting(rd, j, tau, 1.0)          # 0.39 A^2 in the winding: the friction rises by 25 % over the session

@@ -15,6 +15,7 @@ import json
 import numpy as np
 import pytest
 
+from diagnosis.residual import part_rows
 from fixtures_diag import clean_model, recording
 
 EFFECTS = [{"kind": "payload_change", "joints": [5], "mass": 0.3, "com": [0.05, 0.0, 0.0]},
@@ -55,7 +56,7 @@ def _some(grid):
 def test_grid_columns_are_the_band_columns_of_every_term(rd, j):
     from diagnosis.library import LIBRARY
 
-    rows_all = rd.mask & rd.fit_rows[:, None]
+    rows_all = rd.mask & part_rows(rd.fit_rows, rd.n)
     for term in LIBRARY:
         if not term.per_joint and j not in term.joints(rd):
             continue
@@ -138,7 +139,7 @@ def test_backlash_normal_equations_are_those_of_its_columns(rd, j):
 
     term = Backlash()
     motors = term.motors(rd, j)
-    rows = (rd.mask & rd.fit_rows[:, None])[:, motors]
+    rows = (rd.mask & part_rows(rd.fit_rows, rd.n))[:, motors]
     rng = np.random.default_rng(j)
     w = rng.uniform(0.5, 2.0, len(motors))
     b = rng.normal(size=rows.shape)
@@ -160,7 +161,7 @@ def test_thermal_store_gives_the_default_columns_to_the_bit(rd, j):
     from diagnosis.library import Term, ThermalDrift
 
     term = ThermalDrift()
-    rows = (rd.mask & rd.fit_rows[:, None])[:, [j]]
+    rows = (rd.mask & part_rows(rd.fit_rows, rd.n))[:, [j]]
     grid = term.grid(rd, j)
     assert {src for _, src in grid} == set(ThermalDrift.SOURCES)
     want = list(Term.grid_columns(term, rd, j, grid, rows))
@@ -203,7 +204,7 @@ def test_filtering_only_the_stretches_around_the_rows_gives_the_whole_runs_value
     """ResidualData.lowpass_spans: filtering the stretches around the fit rows (each run cut to the rows plus the
     filter's memory) gives, on those rows, what filtering the whole runs gives, to the rounding of the filter; the
     stretches leave out what lies further than the memory from every row, and rows outside every run get None."""
-    rows = rd.mask[:, j] & rd.fit_rows
+    rows = rd.mask[:, j] & part_rows(rd.fit_rows, rd.n)[:, j]
     spans = rd.lowpass_spans(rows)
     runs = rd.signals.runs
     keep = np.concatenate([np.arange(a, b) for a, b in spans])
@@ -425,7 +426,7 @@ def test_cogging_in_the_torque_band_reads_no_ripple_faster_than_half_the_sample_
     assert np.array_equal(Cogging.sampled(rd, j, p), (~fast).astype(float))
     wide = CoggingWide().columns(rd, j, p)[:, j, :]
     assert np.any(wide[fast])                                      # unfiltered: every sample is the angle's own
-    rows = (rd.mask & rd.fit_rows[:, None])[:, [j]]
+    rows = (rd.mask & part_rows(rd.fit_rows, rd.n))[:, [j]]
     pick = list(grid[:3]) + [q for q in grid if q > 1.5 * np.pi * rd.fs / speed.max()][:3] + [p]
     for h, X in term.grid_columns(rd, j, pick, rows):
         want = term.band_columns(rd, j, h)[:, [j], :][rows]
