@@ -170,6 +170,13 @@ class MismatchSearch:
     #: spring, 0.13); the next right name took 0.19. Until stop 35 the floor was ``min_gain`` (0.12), as on the select
     #: rows; reference terms (never named) still ask for that.
     MIN_FIT_GAIN = 0.18
+    #: The least number of independent samples (2 f_c T: the torque band's f_c, T the rows' duration) a candidate is
+    #: fitted on, on the motor of the joint it is named on (over every motor for a payload): the 7 Hz torque filter
+    #: makes neighbouring rows one sample. Until stop 45, 20 rows
+    #: (0.2 s at 100 Hz). Foreign case 25's twin moves joint 2 for 3 s, all but 34 rows of it outside the fit rows
+    #: (4.8 independent samples at 100 Hz): a play fitted there on a breakaway's transient took 80 % of the report
+    #: residual of a clean recording.
+    MIN_FIT_SAMPLES = 20.0
 
     def __init__(self, library: tuple[Term, ...] = LIBRARY, kinds=None, min_gain: float = 0.12,
                  min_gain_all: float = 0.01, max_terms: int = 4, progress=None,
@@ -188,6 +195,13 @@ class MismatchSearch:
         return next(t for t in self.library if t.kind == kind)
 
     # -- one candidate ----------------------------------------------------------------------------------------------
+    @staticmethod
+    def _rows_per_sample(rd: ResidualData) -> float:
+        """Rows per independent sample of the torque band: fs / (2 f_c) (1 where the recording does not say)."""
+        settings = getattr(getattr(rd, "signals", None), "settings", None)
+        fc = getattr(settings, "fc_acceleration_hz", None)
+        return float(rd.fs) / (2.0 * float(fc)) if fc and getattr(rd, "fs", None) else 1.0
+
     def _row_masks(self, rd: ResidualData) -> dict:
         """(N, n) masks of the fit, select and report rows, made once per recording."""
         cached = getattr(self, "_masks", None)
@@ -453,7 +467,11 @@ class MismatchSearch:
         sel_fit = rows[coef_rows[0]][:, motors]
         for extra in coef_rows[1:]:
             sel_fit = sel_fit | rows[extra][:, motors]
-        if sel_fit.sum() < 20:
+        # counted where the term is named: on its joint's motor (a play or a spring also moves the other motors a
+        # little), over every motor for a change of the load (a payload's weight is on all of them)
+        own = (sel_fit[:, list(motors).index(j)] if j is not None and j in motors and not term.changes_load
+               else sel_fit)
+        if sel_fit.sum() < 20 or own.sum() < self._rows_per_sample(rd) * self.MIN_FIT_SAMPLES:
             return None
         st = self._stats(rd, band, r, w)
         rw = st["rw"]

@@ -1529,3 +1529,51 @@ def test_a_torque_offset_under_five_percent_of_the_motors_coulomb_friction_is_no
     assert TorqueOffset().effect(rd, 1, None, np.array([0.0007]), std)[2]           # no Coulomb friction to compare
     assert not TorqueOffset().effect(rd, 0, None, np.array([0.01]), np.array([0.01]))[2]   # not significant
     assert ModelDataOffset().effect(rd, 0, None, np.array([0.0022]), std)[2]        # a reference keeps its reading
+
+
+def test_a_motor_that_moves_late_gets_its_own_report_cut():
+    """``split_rows`` with ``moving``: the time split's parts per motor. A motor with less than
+    ``MIN_SHARE_BEFORE_CUT`` of its moving samples before the recording's report cut is cut where 70 % of its own
+    moving samples are past (foreign case 77: joints 1-4 moved only in the last 30 %, so the search had no fit rows
+    there); the others keep the recording's cut. No motor has a row in two parts; labelled recordings give every
+    motor the same rows."""
+    from diagnosis.residual import MIN_SHARE_BEFORE_CUT, motor_rows, part_rows, split_rows
+
+    t = np.arange(0.0, 60.0, 0.01)
+    keep = np.ones(len(t), bool)
+    moving = np.ones((len(t), 3), bool)
+    moving[:, 1] = t > 45.0                            # motor 2 moves in the last quarter only
+    log = SimpleNamespace(trials=lambda: [])
+    fit1, sel1, hold1, note1 = split_rows(log, t, keep)
+    assert fit1.ndim == 1 and "cut later" not in note1
+    fit, sel, hold, note = split_rows(log, t, keep, moving=moving)
+    assert fit.shape == sel.shape == hold.shape == moving.shape
+    for j in (0, 2):                                   # the recording's cut
+        assert (fit[:, j] == fit1).all() and (sel[:, j] == sel1).all() and (hold[:, j] == hold1).all()
+    mine = moving[:, 1]
+    assert (mine & ~hold1).sum() < MIN_SHARE_BEFORE_CUT * mine.sum()
+    share = (mine & (fit[:, 1] | sel[:, 1])).sum() / mine.sum()
+    assert share == pytest.approx(0.7, abs=0.01)
+    assert (mine & fit[:, 1]).sum() > 0.3 * mine.sum() and (mine & sel[:, 1]).sum() > 0.1 * mine.sum()
+    assert t[hold[:, 1]].min() > t[(fit | sel)[:, 1]].max()
+    for j in range(3):
+        assert not (fit[:, j] & sel[:, j]).any() and not ((fit[:, j] | sel[:, j]) & hold[:, j]).any()
+    assert "cut later" in note and "motor 2" in note
+    assert (part_rows(fit1, 3) == fit1[:, None]).all() and (motor_rows(fit, 1) == fit[:, 1]).all()
+    assert (motor_rows(fit1, 2) == fit1).all()
+
+
+def test_a_load_dependent_friction_may_read_up_to_a_gear_of_efficiency_one_third():
+    """``LoadDependentFriction.MAX_COEFFICIENT`` (2, eta = 1/3): the independent simulator's wrist frictions at
+    mu = 1 read 0.99-1.01 and were refused under the old bound of 0.5; a reading above 2 is refused and says why."""
+    from diagnosis.library import LoadDependentFriction
+
+    term = LoadDependentFriction()
+    std = np.array([0.01])
+    for mu, ok in ((0.3, True), (1.0, True), (1.9, True), (2.5, False), (0.02, False), (-0.4, False)):
+        _, _, plausible, why = term.effect(None, 0, None, np.array([mu]), std)
+        assert bool(plausible) is ok, (mu, why)
+        if mu == 2.5:
+            assert "above 2" in why and "efficiency under 33%" in why
+        if mu in (0.02, -0.4):
+            assert "not positive/significant" in why

@@ -148,3 +148,42 @@ def test_only_the_thermal_drift_chooses_on_the_select_rows():
     from diagnosis.library import LIBRARY, ThermalDrift
 
     assert {type(t) for t in LIBRARY if t.hyper_on_select} == {ThermalDrift}
+
+
+def test_a_term_is_not_fitted_on_fewer_independent_samples_of_its_motor_than_the_floor(rd):
+    """``MismatchSearch.MIN_FIT_SAMPLES``: a term named on joint j needs 2 f_c T >= 20 independent samples of its
+    motor's fit rows (the torque band's f_c, T their duration); a payload counts every motor's. A motor left with
+    0.5 s of fit rows (7 independent samples at 7 Hz) gets no friction term and no play, though a play's columns
+    reach every motor; the other motors, and a payload on the hand whose motor is the short one, are fitted."""
+    import copy
+
+    from diagnosis.library import Backlash, FrictionRefit, PayloadChange
+    from diagnosis.search import MismatchSearch
+
+    res = {"low": np.nan_to_num(rd.residual), "wide": np.nan_to_num(rd.residual_wide)}
+    per_sample = MismatchSearch._rows_per_sample(rd)
+    assert per_sample == pytest.approx(rd.fs / (2 * rd.signals.settings.fc_acceleration_hz))
+    keep_rows = int(0.5 * rd.fs)
+    assert keep_rows < 20 * per_sample
+
+    def short_on(j):
+        short = copy.copy(rd)
+        short.extra = {"model": rd.extra["model"], "min_speed": rd.extra["min_speed"]}
+        fit = part_rows(rd.fit_rows, rd.n).copy()
+        on = np.flatnonzero(fit[:, j] & rd.mask[:, j])
+        assert len(on) > 10 * keep_rows
+        fit[on[keep_rows:], j] = False
+        short.fit_rows = fit
+        return short, *_search(short, res)
+
+    short, search, weights = short_on(0)
+    assert search._evaluate(short, FrictionRefit(), 0, res, weights) is None
+    assert search._evaluate(short, Backlash(), 0, res, weights) is None
+    assert search._evaluate(short, FrictionRefit(), 1, res, weights) is not None
+    full, w_full = _search(rd, res)
+    assert full._evaluate(rd, FrictionRefit(), 0, res, w_full) is not None
+    assert full._evaluate(rd, Backlash(), 0, res, w_full) is not None
+    hand = rd.n - 1
+    short, search, weights = short_on(hand)
+    assert search._evaluate(short, FrictionRefit(), hand, res, weights) is None
+    assert search._evaluate(short, PayloadChange(), hand, res, weights) is not None
