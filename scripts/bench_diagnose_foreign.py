@@ -216,8 +216,9 @@ def _clean_names(score: dict) -> str:
     return ", ".join(f"{k} {v}" for k, v in named.items()) or "none"
 
 
-def combine(paths: list[Path], write: Path | None = None) -> int:
-    """Score several runs' bench.json together (e.g. seeds 0-19 and 20-39 run in two processes)."""
+def combine(paths: list[Path], write: Path | None = None, seeds: range | None = None) -> int:
+    """Score several runs' bench.json together (e.g. seeds 0-19 and 20-39 run in two processes); ``seeds``: only
+    those cases and their twins (a set cut out of runs that were split otherwise)."""
     rows, twins, ident = [], [], None
     for p in paths:
         try:
@@ -228,6 +229,13 @@ def combine(paths: list[Path], write: Path | None = None) -> int:
         rows += d["rows"]
         twins += d.get("twins", [])
         ident = d.get("identification") or ident
+    if seeds is not None:
+        rows = [r for r in rows if r["seed"] in seeds]
+        twins = [r for r in twins if r["seed"] in seeds]
+    if not rows:
+        print("bench_diagnose_foreign: error: no cases to combine" + (f" in seeds {seeds.start}-{seeds.stop - 1}"
+                                                                     if seeds is not None else ""), file=sys.stderr)
+        return 2
     rows.sort(key=lambda r: r["seed"])
     twins.sort(key=lambda r: r["seed"])
     s = sim_bench.score(rows)
@@ -259,9 +267,18 @@ def main(argv=None) -> int:
                     help="print the score of these runs' bench.json together (rows and twins; no diagnosis) and, "
                          "with --write FILE, write them as one file")
     ap.add_argument("--write", type=Path, help="with --combine: the combined file to write")
+    ap.add_argument("--seeds", metavar="FIRST-LAST",
+                    help="with --combine: only these cases and their twins (e.g. 40-79)")
     a = ap.parse_args(argv)
     if a.combine:
-        return combine(a.combine, a.write)
+        seeds = None
+        if a.seeds:
+            try:
+                lo, hi = (int(x) for x in a.seeds.split("-"))
+            except ValueError:
+                ap.error(f"--seeds {a.seeds!r}: give FIRST-LAST, e.g. 40-79")
+            seeds = range(lo, hi + 1)
+        return combine(a.combine, a.write, seeds)
     a.out.mkdir(parents=True, exist_ok=True)
     model = identify(a.out)
     ident = identification_figures(model)
