@@ -261,8 +261,8 @@ def interleave(pool: np.ndarray, t: np.ndarray, blocks: int = 15) -> tuple[np.nd
 #: In the time split, a joint that has less than this share of its moving samples before the recording's report cut
 #: (nominally 1 - report_fraction, 70 %) gets a cut of its own: the time by which 1 - report_fraction of its moving
 #: samples are past (:func:`split_rows`). On the independent simulator some trajectories move a joint only late in
-#: the session (case 77: joints 1-4 still 79 % of the time, their motion all but one sample in the last 30 %), so the
-#: search had no fit rows there and could not see the friction on joint 3 that the report rows showed (stop 45).
+#: the session (case 77: joints 1-4 at rest 73-79 % of the time, their motion all but one sample in the last 30 %),
+#: so the search had no fit rows there and could not see the friction on joint 3 that the report rows showed.
 MIN_SHARE_BEFORE_CUT = 0.5
 
 
@@ -334,8 +334,8 @@ def split_rows(log, t: np.ndarray, keep: np.ndarray, holdout_trial: str = "valid
         late.append(f"motor {j + 1} at {own_cut - tk[0]:.1f} s ({(mine & pool).sum() / total:.0%} of its motion "
                     "before the recording's cut)")
     if late:
-        note += ("; cut later for the motors that move mostly at the end, where 70 % of their own motion is past: "
-                 .replace("70 %", f"{1 - report_fraction:.0%}") + ", ".join(late))
+        note += (f"; cut later for the motors that move mostly at the end, where {1 - report_fraction:.0%} of their "
+                 "own motion is past: " + ", ".join(late))
     return fit, sel, hold, note + " (fit : select = 2 : 1, interleaved time blocks)"
 
 

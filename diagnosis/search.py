@@ -172,10 +172,9 @@ class MismatchSearch:
     MIN_FIT_GAIN = 0.18
     #: The least number of independent samples (2 f_c T: the torque band's f_c, T the rows' duration) a candidate is
     #: fitted on, on the motor of the joint it is named on (over every motor for a payload): the 7 Hz torque filter
-    #: makes neighbouring rows one sample. Until stop 45, 20 rows
-    #: (0.2 s at 100 Hz). Foreign case 25's twin moves joint 2 for 3 s, all but 34 rows of it outside the fit rows
-    #: (4.8 independent samples at 100 Hz): a play fitted there on a breakaway's transient took 80 % of the report
-    #: residual of a clean recording.
+    #: makes neighbouring rows one sample. Until stop 45, 20 rows (0.2 s at 100 Hz). Foreign case 25's twin moves
+    #: joint 2 for 3 s, all but 34 rows of it outside the fit rows (4.8 independent samples at 100 Hz): a play fitted
+    #: there on a breakaway's transient took 80 % of the report residual of a clean recording.
     MIN_FIT_SAMPLES = 20.0
 
     def __init__(self, library: tuple[Term, ...] = LIBRARY, kinds=None, min_gain: float = 0.12,

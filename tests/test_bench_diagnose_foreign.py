@@ -96,10 +96,15 @@ def test_the_printed_reports_are_the_rows():
 
 
 def _set44(name: str):
+    return _bench(f"diagnose-bench-{name}-2026-11-28-stop44.json")
+
+
+def _bench(file: str):
+    """A committed rows file (docs/bench) and the scores of its cases and of its twins."""
     sys.path.insert(0, str(ROOT / "scripts"))
     import bench_diagnose
 
-    d = json.loads((BENCH / f"diagnose-bench-{name}-2026-11-28-stop44.json").read_text())
+    d = json.loads((BENCH / file).read_text())
     return d, bench_diagnose.score(d["rows"]), bench_diagnose.score(d["twins"])
 
 
@@ -159,11 +164,7 @@ def test_stop44_the_cases_the_rules_were_read_on_name_their_truth():
 
 
 def _set45(name: str):
-    sys.path.insert(0, str(ROOT / "scripts"))
-    import bench_diagnose
-
-    d = json.loads((BENCH / f"diagnose-bench-{name}-2026-11-29-stop45.json").read_text())
-    return d, bench_diagnose.score(d["rows"]), bench_diagnose.score(d["twins"])
+    return _bench(f"diagnose-bench-{name}-2026-11-29-stop45.json")
 
 
 @pytest.mark.parametrize("name,seeds,found,false,clean,twins", [
@@ -207,11 +208,7 @@ def test_stop45_against_stop44_over_0_99_and_out_of_sample():
 
     assert kind(before, "load_dependent_friction") == (1, 13) and kind(now, "load_dependent_friction") == (6, 13)
     assert kind(before, "asymmetric_friction") == (11, 13) and kind(now, "asymmetric_friction") == (12, 13)
-    sys.path.insert(0, str(ROOT / "scripts"))
-    import bench_diagnose
-
-    d = json.loads((BENCH / "diagnose-bench-foreign-out-2026-11-29-stop45-before.json").read_text())
-    s, t = bench_diagnose.score(d["rows"]), bench_diagnose.score(d["twins"])
+    _, s, t = _bench("diagnose-bench-foreign-out-2026-11-29-stop45-before.json")
     assert (s["effects_found"], s["effects"], sum(s["false_names"].values())) == (22, 44, 11)
     assert s["clean_none"] + t["clean_none"] == 33 and s["clean"] + t["clean"] == 40
     out = _set45("foreign-out")
