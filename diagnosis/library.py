@@ -1721,8 +1721,9 @@ class Backlash(_Compliance):
         filter is linear: filtering resp * K[j, :] is filtering resp, then scaling)."""
         cache = rd.extra.setdefault("backlash_low", {})
         if j not in cache:
-            cache[j] = (rd.lowpass(_link_response(rd, j)[0] * _sliding(rd, j)[:, None]),
-                        rd.lowpass(JointElasticity().columns(rd, j, None)))
+            with np.errstate(over="ignore", invalid="ignore"):     # a diverged grid point: skipped by the search
+                resp = _link_response(rd, j)[0] * _sliding(rd, j)[:, None]
+            cache[j] = (rd.lowpass(resp), rd.lowpass(JointElasticity().columns(rd, j, None)))
         resp_low, el_low = cache[j]
         col = np.empty((len(rd.t), rd.n, 2))
         col[:, :, 0] = resp_low[:, int(h)][:, None] * rd.K[j, :][None, :]
