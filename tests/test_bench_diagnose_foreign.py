@@ -99,6 +99,16 @@ def _set44(name: str):
     return _bench(f"diagnose-bench-{name}-2026-11-28-stop44.json")
 
 
+def _assert_set(loaded, seeds, found, false, clean, twins):
+    """A committed set's cases, right names (found, of), false names and clean recordings (cases, twins)."""
+    d, s, t = loaded
+    assert [r["seed"] for r in d["rows"]] == list(seeds)
+    assert all(r["effects"] == [] and r["twin_of"] == r["seed"] for r in d["twins"])
+    assert (s["effects_found"], s["effects"]) == found
+    assert sum(s["false_names"].values()) == false
+    assert (s["clean_none"], s["clean"]) == clean and (t["clean_none"], t["clean"]) == twins
+
+
 def _bench(file: str):
     """A committed rows file (docs/bench) and the scores of its cases and of its twins."""
     sys.path.insert(0, str(ROOT / "scripts"))
@@ -114,12 +124,7 @@ def _bench(file: str):
     ("foreign-new", range(80, 100), (11, 19), 1, (5, 6), (13, 14)),
 ])
 def test_stop44_the_readme_figures_are_the_committed_rows(name, seeds, found, false, clean, twins):
-    d, s, t = _set44(name)
-    assert [r["seed"] for r in d["rows"]] == list(seeds)
-    assert all(r["effects"] == [] and r["twin_of"] == r["seed"] for r in d["twins"])
-    assert (s["effects_found"], s["effects"]) == found
-    assert sum(s["false_names"].values()) == false
-    assert (s["clean_none"], s["clean"]) == clean and (t["clean_none"], t["clean"]) == twins
+    _assert_set(_set44(name), seeds, found, false, clean, twins)
     assert ("**Cases 0-39: 37 of 62 (60 %), 5 false names, clean 38 of 40; cases 40-79: 17 of 48 (35 %), 14 false "
             "names, clean 36 of 40; cases 80-99 (drawn at this stop; case 90 was read for the asymmetry rule): 11 of 19 "
             "(58 %), 1 false name, clean 18 of 20.**") in README
@@ -174,12 +179,7 @@ def _set45(name: str):
     ("foreign-out", range(100, 140), (23, 44), 12, (9, 9), (23, 31)),
 ])
 def test_stop45_the_readme_figures_are_the_committed_rows(name, seeds, found, false, clean, twins):
-    d, s, t = _set45(name)
-    assert [r["seed"] for r in d["rows"]] == list(seeds)
-    assert all(r["effects"] == [] and r["twin_of"] == r["seed"] for r in d["twins"])
-    assert (s["effects_found"], s["effects"]) == found
-    assert sum(s["false_names"].values()) == false
-    assert (s["clean_none"], s["clean"]) == clean and (t["clean_none"], t["clean"]) == twins
+    _assert_set(_set45(name), seeds, found, false, clean, twins)
     assert ("**Cases 0-39: 39 of 62 (63 %), 5 false names, clean 38 of 40; 40-79: 20 of 48 (42 %), 12 false names, "
             "clean 37 of 40; 80-99: 12 of 19 (63 %), 1 false name, clean 18 of 20. Over 0-99: 71 of 129 (65 with stop "
             "44's code), 18 false names (20), clean 93 of 100 (92); load-dependent friction 6 of 13 (1), asymmetric "
