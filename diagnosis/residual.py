@@ -288,7 +288,7 @@ def split_rows(log, t: np.ndarray, keep: np.ndarray, holdout_trial: str = "valid
     n = None if moving is None else moving.shape[1]
 
     def per_motor(*rows):
-        return tuple(r if n is None else np.repeat(r[:, None], n, axis=1) for r in rows)
+        return tuple(r if n is None else part_rows(r, n) for r in rows)
 
     trials = log.trials()
     hold = _trial_rows(log, t, holdout_trial) & keep if holdout_trial in trials else np.zeros(len(t), bool)
