@@ -1577,3 +1577,81 @@ def test_a_load_dependent_friction_may_read_up_to_a_gear_of_efficiency_one_third
             assert "above 2" in why and "efficiency under 33%" in why
         if mu in (0.02, -0.4):
             assert "not positive/significant" in why
+
+
+def _sweeping_motors(fs=1000.0, seconds=40.0):
+    """Two motors: motor 0 sweeps back and forth at a constant 20.8 rad/s (0.25 s ramps, a reversal every 6 s: the
+    independent simulator's constant-speed sweeps), motor 1 turns slowly (2 rad/s, reversing every 5 s)."""
+    t = np.arange(int(seconds * fs)) / fs
+    half = t % 6.0
+    w0 = np.where(t % 12.0 < 6.0, 1, -1) * np.clip(np.minimum(half, 6.0 - half) / 0.25, 0, 1) * 20.8
+    w1 = np.where((t % 10.0) < 5.0, 2.0, -2.0)
+    w = np.stack([w0, w1], axis=1)
+    q = np.cumsum(w, axis=0) / fs
+    fit = (np.arange(len(t)) // int(2 * fs)) % 3 != 2          # blocks of 2 s: two thirds fit, a third select
+    return SimpleNamespace(n=2, t=t, fs=fs, q_motor=q, dq_motor=w, fit_rows=fit, select_rows=~fit,
+                           mask=np.ones((len(t), 2), dtype=bool), extra={},
+                           signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=7.0)))
+
+
+def test_a_ripple_in_the_torque_band_is_read_only_where_the_motor_travels_three_of_its_periods_in_the_band():
+    """Cogging.grid (stop 46): in the torque band a period count is tried only where the fit rows travel
+    ``MIN_IN_BAND_PERIODS`` (3) ripple periods while the ripple is under the band's cut-off (p |w| / 2 pi <= f_c). A
+    motor swept at a constant 20.8 rad/s passes 7 periods per revolution through the 7 Hz band only at its reversals
+    (about 2 periods over the whole recording): not tried there, though its angle span holds thousands of periods; the
+    unfiltered readings (CoggingWide) still try it. A motor turning at 2 rad/s travels all its periods in the band:
+    tried, and its travel is the angle it turns times p / 2 pi."""
+    from diagnosis.library import Cogging, CoggingWide
+
+    rd = _sweeping_motors()
+    fit = rd.fit_rows
+    travel = Cogging().in_band_travel(rd, 0, np.array([7, 12]))
+    assert np.all(travel < Cogging.MIN_IN_BAND_PERIODS) and np.all(travel > 0)
+    assert 7 not in Cogging().grid(rd, 0) and 7 in CoggingWide().grid(rd, 0)
+    slow = Cogging().in_band_travel(rd, 1, np.array([6]))
+    np.testing.assert_allclose(slow, [2.0 * fit.sum() / rd.fs * 6 / (2 * np.pi)], rtol=1e-12)
+    assert 6 in Cogging().grid(rd, 1) and 7 in Cogging().grid(rd, 1)
+    rd.signals.settings.fc_acceleration_hz = None                  # no band known: the angle span alone decides
+    assert 7 in Cogging().grid(rd, 0)
+
+
+def test_a_play_read_on_a_flank_must_beat_an_offset_of_its_joints_angle():
+    """AngleOffset (a reference, never named) is the null of BacklashOnFlank (stop 46): where joint j's torque never
+    reverses, the stiff flank's column is the angle offset's column times -sgn(tau_j), so the two fit alike and the
+    play is refused (foreign case 138's clean twin: 40.1 % against 40.1 %); where it reverses, the columns differ, and
+    a play that explains far more than an offset stands."""
+    from diagnosis.library import (REFERENCE_KINDS, AngleOffset, BacklashOnFlank, BacklashOnStiffFlank, Fitted,
+                                   JointElasticity, TorqueOffset)
+    from diagnosis.search import MismatchSearch, Scored
+
+    rng = np.random.default_rng(3)
+    N, n = 400, 3
+    tau = np.abs(rng.normal(5.0, 1.0, (N, n)))                      # joint 1 carries gravity: never reverses
+    rd = SimpleNamespace(n=n, t=np.arange(N) / 100.0, tau_rigid_joint=tau, K=np.diag([50.0, 80.0, 30.0]),
+                         extra={"dtau_dq": rng.normal(size=(N, n, n))})
+    offset_col = AngleOffset().columns(rd, 1, None)
+    flank_col = BacklashOnStiffFlank().columns(rd, 1, None)
+    np.testing.assert_allclose(flank_col, -offset_col, rtol=0, atol=0)
+    rd.tau_rigid_joint[::7, 1] *= -1                                 # a joint that reverses: not the same column
+    assert not np.allclose(BacklashOnStiffFlank().columns(rd, 1, None), -offset_col)
+    assert AngleOffset.reference and "angle_offset" in REFERENCE_KINDS
+    assert "angle_offset" in BacklashOnFlank.extends and "angle_offset" in BacklashOnStiffFlank.extends
+
+    def scored(term, coef, std, gain, joint=1):
+        fit = Fitted(kind=term.kind, joint=joint, hyper=None, coef=np.array(coef), coef_std=np.array(std), effect={},
+                     summary="", plausible=True, why_not="")
+        return Scored(fitted=fit, fit_gain=gain, select_gain=gain, select_gain_all=gain, holdout_gain=gain,
+                      rms_before=np.ones(3), rms_after=np.ones(3), band="low", term=term)
+
+    held = scored(BacklashOnStiffFlank(), [0.0019], [1e-4], 0.401)
+    free = scored(BacklashOnFlank(), [0.0018, 1e-6], [1e-4, 1e-5], 0.399)
+    angle = scored(AngleOffset(), [0.0019], [1e-4], 0.401)
+    MismatchSearch()._nested_check([held, free, angle, scored(TorqueOffset(), [0.01], [1e-3], 0.05),
+                                    scored(JointElasticity(), [1e-4], [1e-5], 0.308)])
+    assert not held.fitted.plausible and "no better than angle_offset" in held.fitted.why_not
+    assert not free.fitted.plausible and angle.fitted.plausible
+    true_play = scored(BacklashOnFlank(), [0.02, 4e-4], [1e-4, 1e-5], 0.955)
+    MismatchSearch()._nested_check([true_play, scored(AngleOffset(), [0.01], [1e-4], 0.30),
+                                    scored(TorqueOffset(), [0.01], [1e-4], 0.455),
+                                    scored(JointElasticity(), [1e-3], [1e-5], 0.30)])
+    assert true_play.fitted.plausible, true_play.fitted.why_not
