@@ -622,35 +622,45 @@ class Cogging(Term):
         periods = [p for p in range(1, top + 1) if p * span / (2 * np.pi) >= self.MIN_PERIODS]
         if self.band != "low" or not periods:
             return periods
-        travel = self.in_band_travel(rd, j, np.asarray(periods))
-        return [p for p, n in zip(periods, travel) if n >= self.MIN_IN_BAND_PERIODS]
+        cover = self.in_band_cover(rd, j, periods)
+        return [p for p, n in zip(periods, cover) if n >= self.MIN_IN_BAND_PERIODS]
 
-    MIN_IN_BAND_PERIODS = 3     # ripple periods the fit rows must travel in the torque band (:meth:`in_band_travel`)
+    MIN_IN_BAND_PERIODS = 3     # ripple periods of angle the fit rows must cover in the torque band (in_band_cover)
+    COVER_BINS = 8              # in_band_cover: the angle counted in bins of 1/8 of the ripple's period
 
-    def in_band_travel(self, rd, j, periods: np.ndarray) -> np.ndarray:
-        """Ripple periods (per period count in ``periods``) motor j travels on its fit rows while the ripple is in
-        the torque band (p |w| / 2 pi at most the band's cut-off f_c): the rows a reading in the band is made from.
-        Faster, the filter passes almost none of the ripple (at 3 f_c a 4th-order filter run both ways passes
-        1e-4 of it), so a reading made there divides what little of the residual is at that frequency by the
-        filter's gain. The independent simulator's constant-speed sweeps were read so: 8 false coggings (cases 49,
-        103, 108 twice, 116 and the clean twin 18; 2-48 periods per revolution) were fitted on the 0.9-2.3 periods
-        the sweeps' reversals pass through the band (the rest of their fit rows: 14-73 Hz ripples); their amplitudes,
-        0.0007-0.02 N*m, blew up where the report rows turn slowly (report gains -0.01 to -15). The true ripples the
-        torque band may have read (cases 0-139) travel 3.3-26 periods there; so a period count is tried only where
-        the fit rows travel ``MIN_IN_BAND_PERIODS`` (3) in the band. Ripples read unfiltered (:class:`CoggingWide`,
-        :class:`CoggingPassBand`) are not held to it (case 47's true 36 per revolution travels 0.3). Cases 129 and
-        twin 17 (false, 1-2 per revolution) travel 17-25 and stay. Set on cases 0-139; cases 140-179 were drawn
-        after it. Returns (len(periods),) periods; inf where the recording has no cut-off."""
+    def in_band_cover(self, rd, j, periods) -> np.ndarray:
+        """Ripple periods of motor angle (per period count in ``periods``) that motor j's fit rows cover while the
+        ripple is in the torque band (p |w| / 2 pi at most the band's cut-off f_c): the distinct angles a reading in
+        the band is made from, counted in bins of 1/``COVER_BINS`` of the period (an angle passed many times counts
+        once), as :meth:`grid`'s span counts the angles covered at all. Faster, the filter passes almost none of the
+        ripple (at 3 f_c a 4th-order filter run both ways passes 1e-4 of it), and a reading made there divides what
+        little of the residual is at that frequency by the filter's gain.
+
+        The independent simulator's constant-speed sweeps were read so: 9 false coggings (cases 49, 103, 108 three
+        times, 116, 129; 2-48 periods per revolution) were fitted where the sweeps' reversals pass through the band,
+        each time over the same angles: 0.9-2.3 periods covered there (the rest of the fit rows: 14-73 Hz ripples).
+        Their amplitudes, 0.0007-0.02 N*m, blew up where the report rows turn slowly (report gains -0.01 to -56). The
+        true ripples the torque band may have read on cases 0-139 cover 4.4-26 periods there (the 100 Hz cases 0 and
+        80 the fewest); so a period count is tried only where the fit rows cover ``MIN_IN_BAND_PERIODS`` (3). Ripples
+        read unfiltered (:class:`CoggingWide`, :class:`CoggingPassBand`) are not held to it (case 47's true 36 per
+        revolution covers 0.75). The clean twins 17 (1 per revolution, 13 periods) and 18 (35, 4.0) stay. Set on
+        cases 0-139; cases 140-179 were drawn after it. Returns (len(periods),); inf where the recording has no
+        cut-off."""
         settings = getattr(getattr(rd, "signals", None), "settings", None)
         fc = getattr(settings, "fc_acceleration_hz", None)
+        periods = np.asarray(periods, dtype=float)
         if not fc:
             return np.full(len(periods), np.inf)
-        on = motor_rows(rd.fit_rows, j) & rd.mask[:, j]
-        speed = np.abs(_moving(rd, j))[on]
-        order = np.sort(speed)
-        travelled = np.concatenate([[0.0], np.cumsum(order)]) / float(rd.fs)     # rad over the slowest k rows
-        ends = np.searchsorted(order, 2 * np.pi * float(fc) / periods, side="right")
-        return travelled[ends] * periods / (2 * np.pi)
+        store = rd.extra.setdefault("cogging_cover", {})      # the fit rows do not change within a diagnosis
+        if j not in store:
+            on = motor_rows(rd.fit_rows, j) & rd.mask[:, j]
+            store[j] = (np.abs(_moving(rd, j))[on], np.nan_to_num(rd.q_motor[:, j])[on], {})
+        speed, th, done = store[j]
+        for p in periods:
+            if p not in done:
+                band = th[speed * p <= 2 * np.pi * float(fc)]
+                done[p] = len(np.unique(np.floor(band * p * self.COVER_BINS / (2 * np.pi)))) / self.COVER_BINS
+        return np.array([done[p] for p in periods])
 
     def columns(self, rd, j, h):
         """sin, cos of p theta, once for the rows turning forward and once for those turning backward: a ripple
@@ -1831,13 +1841,23 @@ class Backlash(_Compliance):
         b, k, d = _link_response(rd, j)[1][int(h)]
         scale_ok = 0.3 < coef[0] < 1.7 and coef[0] > 3 * std[0]
         spring_ok = coef[1] > -3 * std[1]
-        why = ("" if scale_ok and spring_ok else
+        # the simulated contact is held to the lag a transmission may have, as the flank's and the spring's are
+        # (JointElasticity.MAX_DEFLECTION under the joint's own load, 99th percentile): independent-simulator case
+        # 108 (a payload at the elbow axis, no play) read a 0.08 rad play on a 225 N*m/rad shoulder contact, and case
+        # 58 one on a 49 N*m/rad elbow; the true plays named there read 4 700-18 000 N*m/rad
+        contact_lag = JointElasticity.lag(rd, j, 1.0 / k) if k > 0 else float("inf")
+        soft = contact_lag > JointElasticity.MAX_DEFLECTION
+        ok = scale_ok and spring_ok and not soft
+        why = ("" if ok else
                f"simulated play does not match the residual (scale {coef[0]:.2f})" if not scale_ok else
                f"the contact's spring reads a negative compliance ({coef[1]:.3g} +- {std[1]:.2g} rad/(N*m)) beside "
-               f"the simulated play: not a contact")
+               f"the simulated play: not a contact" if not spring_ok else
+               f"the simulated contact ({k:.3g} N*m/rad) would let the link lag its gear by {contact_lag:.2g} rad "
+               f"under its own load (99th percentile), more than a transmission deflects "
+               f"({JointElasticity.MAX_DEFLECTION:g} rad): not a play's contact")
         return ({"kind": self.kind, "joints": [j], "width": float(b), "stiffness": float(k), "damping": float(d)},
                 f"joint {rd.joints[j]} has lost motion: backlash about {b:.3g} rad (joint side), contact stiffness "
-                f"{k:.3g} N*m/rad (fitted scale {coef[0]:.2f})", scale_ok and spring_ok, why)
+                f"{k:.3g} N*m/rad (fitted scale {coef[0]:.2f})", ok, why)
 
 
 class AngleOffset(Term):

@@ -683,6 +683,25 @@ def test_a_flank_reading_whose_contact_lags_more_than_a_transmission_is_not_a_pl
     assert JointElasticity.lag(rd, 2, 1 / 150.0) == pytest.approx(25.0 / 150.0)
 
 
+def test_a_simulated_play_whose_contact_lags_more_than_a_transmission_is_not_a_play():
+    """Backlash.effect (stop 46): the grid's contact stiffness k is held to JointElasticity.MAX_DEFLECTION under the
+    joint's own load (99th percentile / k), as the flank's contact and the spring alone are. Independent-simulator
+    case 108 (a payload at the elbow axis, no play) read a 0.08 rad play on a 225 N*m/rad shoulder contact with a
+    fitted scale of 0.68; the true plays named there read 4 700-18 000 N*m/rad."""
+    from diagnosis.library import Backlash
+
+    N, n = 400, 3
+    tau = np.tile([30.0, 28.0], N // 2)[:, None] * np.ones((1, n))
+    grid = [(0.08, 225.0, 7.2), (0.011, 4660.0, 31.8)]
+    rd = SimpleNamespace(tau_rigid_joint=tau, mask=np.ones((N, n), bool), joints=["j1", "j2", "j3"],
+                         extra={"link_response": {1: (np.zeros((N, 2)), grid)}})
+    eff, summary, ok, why = Backlash().effect(rd, 1, 0, np.array([0.68, 7e-5]), np.array([0.01, 1e-5]))
+    assert not ok and "would let the link lag its gear by 0.13 rad" in why and "not a play's contact" in why
+    assert eff["width"] == pytest.approx(0.08) and eff["stiffness"] == pytest.approx(225.0)
+    assert Backlash().effect(rd, 1, 1, np.array([0.9, 1e-5]), np.array([0.01, 1e-5]))[2]      # 30 / 4660: named
+    assert "scale" in Backlash().effect(rd, 1, 1, np.array([0.1, 1e-5]), np.array([0.01, 1e-5]))[3]
+
+
 def test_an_offset_the_models_own_recording_carries_too_is_reported_not_named():
     """TorqueOffset.resolve with ``rd.extra["own_offsets"]`` (made on first use): an offset within SAME_OWN
     standard errors of the one the model leaves on its own recording becomes the reference OwnRecordingOffset
@@ -1594,23 +1613,24 @@ def _sweeping_motors(fs=1000.0, seconds=40.0):
                            signals=SimpleNamespace(settings=SimpleNamespace(fc_acceleration_hz=7.0)))
 
 
-def test_a_ripple_in_the_torque_band_is_read_only_where_the_motor_travels_three_of_its_periods_in_the_band():
-    """Cogging.grid (stop 46): in the torque band a period count is tried only where the fit rows travel
-    ``MIN_IN_BAND_PERIODS`` (3) ripple periods while the ripple is under the band's cut-off (p |w| / 2 pi <= f_c). A
-    motor swept at a constant 20.8 rad/s passes 7 periods per revolution through the 7 Hz band only at its reversals
-    (about 2 periods over the whole recording): not tried there, though its angle span holds thousands of periods; the
-    unfiltered readings (CoggingWide) still try it. A motor turning at 2 rad/s travels all its periods in the band:
-    tried, and its travel is the angle it turns times p / 2 pi."""
+def test_a_ripple_in_the_torque_band_is_read_only_where_the_motor_covers_three_of_its_periods_in_the_band():
+    """Cogging.grid (stop 46): in the torque band a period count is tried only where the fit rows cover
+    ``MIN_IN_BAND_PERIODS`` (3) ripple periods of distinct motor angle while the ripple is under the band's cut-off
+    (p |w| / 2 pi <= f_c). A motor swept at a constant 20.8 rad/s passes 7 periods per revolution through the 7 Hz
+    band only at its reversals, each time at the same two angles: about one period covered however often it reverses,
+    so not tried there, though its angle span holds thousands of periods; the unfiltered readings (CoggingWide) still
+    try it. A motor turning back and forth at 2 rad/s over 10 rad covers those 10 rad in the band: p 10 / 2 pi
+    periods."""
     from diagnosis.library import Cogging, CoggingWide
 
     rd = _sweeping_motors()
-    fit = rd.fit_rows
-    travel = Cogging().in_band_travel(rd, 0, np.array([7, 12]))
-    assert np.all(travel < Cogging.MIN_IN_BAND_PERIODS) and np.all(travel > 0)
+    cover = Cogging().in_band_cover(rd, 0, [7, 12])
+    assert np.all(cover < Cogging.MIN_IN_BAND_PERIODS) and np.all(cover > 0)
     assert 7 not in Cogging().grid(rd, 0) and 7 in CoggingWide().grid(rd, 0)
-    slow = Cogging().in_band_travel(rd, 1, np.array([6]))
-    np.testing.assert_allclose(slow, [2.0 * fit.sum() / rd.fs * 6 / (2 * np.pi)], rtol=1e-12)
+    (slow,) = Cogging().in_band_cover(rd, 1, [6])
+    assert abs(slow - 10.0 * 6 / (2 * np.pi)) <= 2.0 / Cogging.COVER_BINS    # the bins at either end
     assert 6 in Cogging().grid(rd, 1) and 7 in Cogging().grid(rd, 1)
+    rd.extra.clear()
     rd.signals.settings.fc_acceleration_hz = None                  # no band known: the angle span alone decides
     assert 7 in Cogging().grid(rd, 0)
 
