@@ -76,20 +76,25 @@ def test_a_factor_on_one_motor_is_not_a_unit_mistake_but_on_most_joints_it_is():
         check_torque_units(arm, t, qm, two, "tx40 sim")
 
 
-def test_a_unit_factor_on_the_only_judged_joint_is_still_refused_but_a_lone_gear_ratio_is_not():
-    """On a motor-side log a gear ratio read on one joint alone is not enough (a wrist's own drive terms can read so),
-    but 1000x is: the independent simulator's TX40 recording in mN m had only its shoulder judged, and was imported
-    without a word until this rule said so."""
+def _one_judged_joint(seed: int):
+    """The simulated recording with one judged joint left: the others' torques replaced by noise (nothing to judge
+    there). (arm, t, q_motor, tau, that joint, the noise's generator)."""
     arm, t, qm, tau = _recording(rotor_inertia_joint4=WRIST_J)
     base = check_torque_units(arm, t, qm, tau, "tx40 sim")
-    judged = [j for j, (s, c) in enumerate(base) if c >= MIN_CORRELATION]
-    keep = judged[0]
-    # leave one judged joint: the others' torques replaced by noise (nothing to judge there)
-    rng = np.random.default_rng(0)
+    keep = [j for j, (s, c) in enumerate(base) if c >= MIN_CORRELATION][0]
+    rng = np.random.default_rng(seed)
     lone = tau.copy()
     for j in range(6):
         if j != keep:
             lone[:, j] = rng.normal(0, 1e-3, len(t))
+    return arm, t, qm, lone, keep, rng
+
+
+def test_a_unit_factor_on_the_only_judged_joint_is_still_refused_but_a_lone_gear_ratio_is_not():
+    """On a motor-side log a gear ratio read on one joint alone is not enough (a wrist's own drive terms can read so),
+    but 1000x is: the independent simulator's TX40 recording in mN m had only its shoulder judged, and was imported
+    without a word until this rule said so."""
+    arm, t, qm, lone, keep, _ = _one_judged_joint(0)
     scaled = lone.copy()
     scaled[:, keep] *= 1000.0
     with pytest.raises(UnitError, match="1000x too large"):
@@ -106,14 +111,7 @@ def test_a_lone_joint_read_at_a_weak_correlation_is_not_a_verdict():
     lone joint read clearly (the 1000x test above) is still refused."""
     from identification.unit_check import LONE_CORRELATION
 
-    arm, t, qm, tau = _recording(rotor_inertia_joint4=WRIST_J)
-    base = check_torque_units(arm, t, qm, tau, "tx40 sim")
-    keep = [j for j, (s, c) in enumerate(base) if c >= MIN_CORRELATION][0]
-    rng = np.random.default_rng(1)
-    lone = tau.copy()
-    for j in range(6):
-        if j != keep:
-            lone[:, j] = rng.normal(0, 1e-3, len(t))
+    arm, t, qm, lone, keep, rng = _one_judged_joint(1)
     clear = lone.copy()
     clear[:, keep] *= 180 / np.pi
     with pytest.raises(UnitError, match="57.3x"):
