@@ -63,6 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--min-speed", type=float, default=0.01,
                    help="rad/s at the JOINT (so any gear ratio): slower samples of a joint are left out, friction "
                         "being undefined at rest (default 0.01; motor i uses min-speed / max_j |K_ji|)")
+    p.add_argument("--payload-removed", action="store_true",
+                   help="a mass may have been taken off the arm since the model was identified (a tool removed): "
+                        "payload_change may then read a negative mass (default: only a mass added is named)")
     p.add_argument("--replay", action="store_true",
                    help="also replay the recorded motion through the simulator (hil_sim) with the model, then with "
                         "the model plus the found effects, and compare with the recording on the report rows "
@@ -85,7 +88,7 @@ def main(argv=None) -> int:
         return 2
     opt = DiagnoseOptions(holdout_trial=args.holdout_trial, fit_trials=args.fit_trials, kinds=args.kinds,
                           min_gain=args.min_gain, min_fit_gain=args.min_fit_gain, max_terms=args.max_terms,
-                          min_speed=args.min_speed,
+                          min_speed=args.min_speed, payload_removed=args.payload_removed,
                           progress=not args.quiet and sys.stderr.isatty())
     try:
         from js2spec.files import check_output_folder

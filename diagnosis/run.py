@@ -25,6 +25,7 @@ class DiagnoseOptions:
     min_fit_gain: float | None = None     # None: MismatchSearch.MIN_FIT_GAIN (0.18), or min_gain when that is higher
     max_terms: int = 4
     min_speed: float = 0.01         # rad/s at the joint: slower samples are left out (friction is undefined at rest)
+    payload_removed: bool = False   # a payload_change may read a negative mass (a tool taken off since identification)
     progress: bool = False
 
 
@@ -225,6 +226,7 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
     notes.extend(log.warnings)
     rd = residual_data(mdl, log, holdout_trial=opt.holdout_trial, fit_trials=opt.fit_trials,
                        min_speed=opt.min_speed)
+    rd.extra["payload_removed"] = bool(opt.payload_removed)
     if not own:       # what the model leaves on its own recordings, read only if an offset is about to be named
         rd.extra["own_offsets"] = lambda: own_offsets(mdl, min_speed=opt.min_speed)
     if rd.signals.note and rd.signals.note != "no lost or invalid cycles":

@@ -1675,3 +1675,31 @@ def test_a_play_read_on_a_flank_must_beat_an_offset_of_its_joints_angle():
                                     scored(TorqueOffset(), [0.01], [1e-4], 0.455),
                                     scored(JointElasticity(), [1e-3], [1e-5], 0.30)])
     assert true_play.fitted.plausible, true_play.fitted.why_not
+
+
+def test_a_mass_taken_off_a_link_is_named_only_when_the_user_says_one_was():
+    """PayloadChange.effect (stop 46): a negative payload (a tool removed since identification) is refused with that
+    reason unless ``rd.extra["payload_removed"]`` (``js2-diagnose --payload-removed``, DiagnoseOptions) says a mass
+    may have been taken off; every negative payload the benches named was false (the independent simulator's cases
+    18, 23, 128, 155-157; the simulator bench's 20 and 147). A positive mass is not held to it."""
+    from diagnosis.library import PayloadChange
+    from diagnosis.run import DiagnoseOptions
+
+    rd = SimpleNamespace(extra={}, joints=["j1", "j2", "j3"], arm=SimpleNamespace(links=["l1", "l2", "l3"]))
+    removed = np.array([-0.021, 0.0003, -0.0002, 0.0068])
+    eff, summary, ok, why = PayloadChange().effect(rd, 2, None, removed, np.full(4, 1e-4))
+    assert not ok and "a mass taken off the link (-0.021 kg)" in why and "--payload-removed" in why
+    assert eff["mass"] == pytest.approx(-0.021)                      # still reported as read
+    assert DiagnoseOptions().payload_removed is False
+    import diagnosis.library as library
+
+    real = library.payload_within_model
+    library.payload_within_model = lambda rd, j, coef: None          # no model uncertainty to weigh here
+    try:
+        rd.extra["payload_removed"] = True
+        assert PayloadChange().effect(rd, 2, None, removed, np.full(4, 1e-4))[2]
+        rd.extra["payload_removed"] = False
+        added = np.array([0.6, 0.003, 0.001, 0.0024])
+        assert PayloadChange().effect(rd, 2, None, added, np.full(4, 1e-4))[2]
+    finally:
+        library.payload_within_model = real

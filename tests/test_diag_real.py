@@ -369,6 +369,9 @@ def test_a_payload_within_the_models_own_uncertainty_is_no_finding(kuka, payload
     c2, dof, limit = payload_within_model(rd, 6, own)
     assert dof > 4 and c2 < limit
     eff, _, ok, why = PayloadChange().effect(rd, 6, None, own, np.full(4, 1e-4))
+    assert not ok and "a mass taken off the link" in why          # negative: refused for its sign by default
+    rd.extra["payload_removed"] = True                            # js2-diagnose --payload-removed: the uncertainty
+    eff, _, ok, why = PayloadChange().effect(rd, 6, None, own, np.full(4, 1e-4))
     assert not ok and "within the model's own uncertainty" in why and f"over {dof}" in why
     _, d = payload_200hz
     found = next(f for f in d["findings"] if f["kind"] == "payload_change")
