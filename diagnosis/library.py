@@ -1917,14 +1917,14 @@ class BacklashOnFlank(Term):
 
     It must also cut what a constant torque on its motor leaves (``torque_offset`` in ``extends``, stop 34): where the
     transmitted torque seldom reverses, the flank reading is an angle offset, G' b/2, which varies little, so a
-    constant explains the same motor as well or better when that is all there is.
-
-    And it must cut what an offset of the joint's angle leaves (``angle_offset`` in ``extends``, :class:`AngleOffset`,
-    stop 46): where the transmitted torque never reverses, the flank column is that offset's column times b/2, and
-    the play cannot be told from an encoder's zero or the model's error along the pose. Read on the fresh clean case 447
+    constant explains the same motor as well or better when that is all there is. Read on the fresh clean case 447
     (1000 Hz): a play on a clean wrist taking 14-20 % of its motor's select residual where a constant took 42 %. On
     the 70 simulator cases with a play named by stop 33's code, the 18 true plays read on a flank cut their motor's
     select residual by 24-99 %, a constant on it by at most 46 % at the same ladder step.
+
+    And it must cut what an offset of the joint's angle leaves (``angle_offset`` in ``extends``, :class:`AngleOffset`,
+    stop 46): where the transmitted torque never reverses, the flank column is that offset's column times b/2, and
+    the play cannot be told from an encoder's zero or the model's error along the pose.
 
     The contact's spring is held to the lag a transmission may have (``JointElasticity.MAX_DEFLECTION``, 0.05 rad
     under the joint's own load, as the spring alone is; stop 38). On the bench's dumps (every step's candidates of

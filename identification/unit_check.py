@@ -13,7 +13,8 @@ wrist (scripts/bench_diagnose_foreign.py) read 36x and was refused as "32x, a ge
 scale is read on what the nominal torque holds beyond the drive terms (both projected off [theta_m_dd, theta_m_d,
 sgn theta_m_d] of the joint's own motor first), and the correlation judged is that part's. A factor read on fewer
 joints than read their nominal torque (scale 1/2-2), or a gear ratio read on a single joint of a motor-side log, is
-not refused: a unit mistake shows on the joints alike.
+not refused: a unit mistake shows on the joints alike; nor is a factor read on the only judged joint at a correlation
+under 0.9 (``LONE_CORRELATION``: a wrist read 47.4x at 0.63 on a clean recording in N m).
 """
 from __future__ import annotations
 
@@ -127,7 +128,7 @@ def check_torque_units(arm, t: np.ndarray, q_motor: np.ndarray, tau_measured: np
     # and a factor read on the only joint judged carries the verdict alone only where the nominal torque clearly
     # explains that joint (LONE_CORRELATION): the independent simulator's clean case 173 read 47.4x ("57.3x, a
     # degree/radian mix-up") on its last wrist motor at correlation 0.63, no other joint above 0.56, torques in N m;
-    # the shoulder in mN m that the lone rule exists for reads 0.99
+    # a shoulder the nominal torque explains reads 0.995 (tests/test_id_unit_check.py's simulated TX40)
     weak_lone = len(wrong) == 1 and not right and wrong[0][2] < LONE_CORRELATION
     if wrong and not lone_gear and not weak_lone and len(wrong) >= len(right):
         j, scale, corr, why = wrong[0]
