@@ -343,3 +343,19 @@ def test_stop36_the_real_sets_name_what_stop_35s_final_code_names():
     text = " ".join(_readme_real_section().split())
     assert ("**Stop 36: those stop-35 rows were not its final code's, and the false names with it are 8, 7 and 8.**"
             in text)
+
+
+def test_stop46_the_real_bench_names_what_stop_44_named_but_one_offset():
+    """The 180 real-bench cases with stop 46's code (one rows file, `diagnose-bench-real-all-2026-11-29-stop46`):
+    112 of 204 right, 19 false names, clean 23 of 23; every case names what the stop-44 rows name (stop 45 named the
+    same) except case 144, whose torque offset on lwr_4 is no longer named: references took the ladder's four steps."""
+    rows = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-all-2026-11-29-stop46.json").read_text())["rows"]
+    s = bench_real.sim_bench.score(rows)
+    assert (s["effects_found"], s["effects"], sum(s["false_names"].values())) == (112, 204, 19)
+    assert (s["clean_none"], s["clean"]) == (23, 23)
+    before = {**_rows_now("real"), **_rows_now("real-fresh"), **_rows_now("real-new")}
+    differ = [r["seed"] for r in rows if _names_of(r) != _names_of(before[r["seed"]])]
+    assert differ == [144] and _names_of(before[144]) == [("torque_offset", 3)] and _names_of(rows[144]) == []
+    assert rows[144]["seed"] == 144 and len(rows[144]["unexplained"]) == 4
+    assert ("**112 of 204 right (113 with stop 45's code), 19 false names (19), clean 23 of 23**"
+            in " ".join(README.split()))
