@@ -298,3 +298,27 @@ def test_stop46_the_cases_the_rules_were_read_on():
     assert all(f["effect"]["mass"] > 0 for r in rows.values() for f in r["named"] if f["kind"] == "payload_change")
     for seed in (94, 99, 120):
         assert not [f for f in rows[seed]["named"] if f["kind"] == "backlash"]
+
+
+def test_stop46_the_kept_simulator_cases_against_stop45():
+    """The 98 hil_sim bench cases whose recordings are kept, diagnosed with this release and with stop 45's code
+    (`diagnose-bench-sim-kept-2026-11-29-stop46.json`): right names 123 -> 121, false names 16 -> 13; six cases
+    differ: the negative payloads of 20 and 147 go (147 names an offset instead), the false plays of 64 and 85 go,
+    the true plays of 65 and 390 are lost."""
+    d = json.loads((BENCH / "diagnose-bench-sim-kept-2026-11-29-stop46.json").read_text())
+
+    def names(r):
+        return sorted((f["kind"], f["joint"]) for f in r["named"])
+
+    tot = {}
+    for tag in ("stop45", "stop46"):
+        right = false = 0
+        for r in d[tag]:
+            truth = {(e["kind"], e["joints"][0]) for e in r["effects"]}
+            right += len(set(names(r)) & truth)
+            false += len(set(names(r)) - truth)
+        tot[tag] = (len(d[tag]), right, false)
+    assert tot == {"stop45": (98, 123, 16), "stop46": (98, 121, 13)}
+    differ = [a["seed"] for a, b in zip(d["stop45"], d["stop46"]) if names(a) != names(b)]
+    assert differ == [20, 64, 65, 85, 147, 390]
+    assert all(f["effect"]["mass"] > 0 for r in d["stop46"] for f in r["named"] if f["kind"] == "payload_change")

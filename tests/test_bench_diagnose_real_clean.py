@@ -172,3 +172,18 @@ def test_stop37_the_clean_real_conditions_read_as_at_stop_36():
     assert new["payload_rows"] == old["payload_rows"] and new["summary"] == old["summary"]
     text = " ".join(DOC.split())
     assert "28 clean real conditions and the 9 payload rows read exactly as stop 36's" in text
+
+
+def test_stop46_the_clean_real_conditions_name_what_they_named_at_stop_44():
+    """Stop 46 (a ripple read where the band shows it, a play against its joint's angle, a removed mass on request):
+    the 28 clean real conditions and the 9 payload rows, diagnosed again, name what stop 44's rows name (7 of 28;
+    the payload 9 of 9); one condition leaves one joint more unexplained (kuka_1 with the kuka_2 model: lwr_1)."""
+    new = json.loads((ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-29-stop46.json").read_text())
+    old = json.loads((ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-28-stop44.json").read_text())
+    assert [r["name"] for r in new["rows"]] == [r["name"] for r in old["rows"]]
+    assert [a["named"] for a in new["rows"]] == [b["named"] for b in old["rows"]]
+    moved = [(a["name"], sorted(set(a["unexplained"]) - set(b["unexplained"])))
+             for a, b in zip(new["rows"], old["rows"]) if a["unexplained"] != b["unexplained"]]
+    assert moved == [("kuka_1 with the kuka_2 model", ["lwr_1_joint"])]
+    assert new["payload_rows"] == old["payload_rows"] and new["summary"] == old["summary"]
+    assert new["summary"]["all"] == {"conditions": 28, "named": 7}
