@@ -601,7 +601,9 @@ class Cogging(Term):
     band); above it the ripple turns into velocity ripple instead (see :class:`CoggingWide` for drives whose loop
     is fast)."""
     kind, hyper_name, band = "cogging", "periods_per_rev", "low"
-    step_caches = ("cogging_gram",)     # the Gram matrices of each grid, kept across the ladder's steps (grid_gram)
+    step_caches = ("cogging_gram", "cogging_cover")   # the Gram matrices of each grid, kept across the ladder's
+    # steps (grid_gram); each motor's fit-row speeds and angles and the angle each period count covers in the band
+    # (in_band_cover): dropped when the search ends
 
     MIN_PERIODS = 5     # ripple periods the motor must sweep within the recording to tell ripple from pose
     MAX_PERIODS = 96    # and at most this many per revolution (or what the encoder resolves: 4 counts per period)
