@@ -1242,7 +1242,9 @@ def test_a_simulated_play_beside_a_negative_spring_is_no_contact():
     reading stands; the scale test is unchanged."""
     from diagnosis.library import Backlash
 
-    rd = SimpleNamespace(joints=["j1"], extra={"link_response": {0: (np.zeros((10, 1)), [(0.005, 182.0, 5.8)])}})
+    # a 2 N*m load: the 182 N*m/rad contact lags 0.011 rad, within a transmission's (stop 46's contact rule)
+    rd = SimpleNamespace(joints=["j1"], extra={"link_response": {0: (np.zeros((10, 1)), [(0.005, 182.0, 5.8)])}},
+                         tau_rigid_joint=np.full((10, 1), 2.0), mask=np.ones((10, 1), dtype=bool))
     term = Backlash()
 
     def read(scale, compliance, std):

@@ -382,7 +382,7 @@ def test_a_payload_within_the_models_own_uncertainty_is_no_finding(kuka, payload
 
 def test_the_aliased_ripple_rule_never_reaches_the_kuka_recordings(kuka):
     """Stop 33's Cogging.sampled zeroes rows where p |w| / 2 pi is above half the sample rate. The KUKA motors (joint
-    side, K = I) turn at under 2 rad/s: for every period count of the grid it zeroes nothing, at 200 Hz or read at
+    side, K = I) turn at under 2 rad/s: for every period count of the grid (up to 96) it zeroes nothing, at 200 Hz or read at
     100 Hz, so the real-data bench's and the proof's readings on them are the numbers they were (README)."""
     from diagnosis.library import Cogging
     from diagnosis.residual import residual_data
@@ -394,7 +394,10 @@ def test_the_aliased_ripple_rule_never_reaches_the_kuka_recordings(kuka):
         rd = residual_data(model, read_log(path))
         for j in range(rd.n):
             grid = Cogging().grid(rd, j)
-            assert grid and max(grid) == 96
+            # up to 96 per revolution, less where the fit rows cover under 3 periods with the ripple in the torque
+            # band (stop 46: Cogging.in_band_cover)
+            assert grid and max(grid) <= 96
+            assert min(Cogging().in_band_cover(rd, j, grid)) >= Cogging.MIN_IN_BAND_PERIODS
             w = np.abs(np.nan_to_num(rd.dq_motor[:, j])).max()
             assert w < 2.0 and max(grid) * w / (2 * np.pi) < 100.0 / 2
             assert np.all(Cogging.sampled(rd, j, max(grid)) == 1.0)
