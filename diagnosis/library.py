@@ -1855,8 +1855,9 @@ class Backlash(_Compliance):
         # (JointElasticity.MAX_DEFLECTION under the joint's own load, 99th percentile): independent-simulator case
         # 108 (a payload at the elbow axis, no play) read a 0.08 rad play on a 225 N*m/rad shoulder contact, and case
         # 58 one on a 49 N*m/rad elbow; the true plays named there read 4 700-18 000 N*m/rad
-        contact_lag = (JointElasticity.lag(rd, j, 1.0 / k) if k > 0 else float("inf")) if scale_ok and spring_ok \
-            else 0.0
+        contact_lag = 0.0               # read only for a reading that passed the other tests
+        if scale_ok and spring_ok:
+            contact_lag = JointElasticity.lag(rd, j, 1.0 / k) if k > 0 else float("inf")
         soft = contact_lag > JointElasticity.MAX_DEFLECTION
         ok = scale_ok and spring_ok and not soft
         why = ("" if ok else
