@@ -26,8 +26,8 @@ what it does:
   3. fits every candidate term (named effects: %s; each on every joint/link) on FIT, ranks them on SELECT and
      walks down the ranking to the first that cuts the SELECT residual of its motors by --min-gain (its FIT
      residual by --min-fit-gain) and beats the null of a plain refit of the model's own friction; accepts it,
-     ranks again, until none passes (at most --max-terms named effects and, apart from them,
-     --max-references); structure only the refit explains is reported 'unexplained', never named (so is a constant
+     ranks again, until none passes (at most
+     --max-terms); structure only the refit explains is reported 'unexplained', never named (so is a constant
      torque offset on a recording the model was identified from: the model's own choice, js2-identify --offsets);
   4. reports the gains on REPORT alone, which the search never saw;
   5. with --replay: replays the recorded motion through the simulator (hil_sim, inverse dynamics) with the model,
@@ -59,11 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="fit residual reduction a named term must reach on its motors, on the rows it was fitted "
                         "to (default 0.18, or --min-gain when that is higher; what is reported 'unexplained' keeps "
                         "--min-gain)")
-    p.add_argument("--max-terms", type=int, default=4, help="most named effects to accept (default 4)")
-    p.add_argument("--max-references", type=int, default=4,
-                   help="most structures reported 'unexplained' (refits of the model's own friction, an angle "
-                        "offset...) to accept, apart from --max-terms: they never take a named effect's step "
-                        "(default 4)")
+    p.add_argument("--max-terms", type=int, default=4, help="most terms to accept (default 4)")
     p.add_argument("--min-speed", type=float, default=0.01,
                    help="rad/s at the JOINT (so any gear ratio): slower samples of a joint are left out, friction "
                         "being undefined at rest (default 0.01; motor i uses min-speed / max_j |K_ji|)")
@@ -90,13 +86,10 @@ def main(argv=None) -> int:
     if args.min_fit_gain is not None and not 0 < args.min_fit_gain < 1:
         print("js2-diagnose: error: --min-fit-gain must lie between 0 and 1", file=sys.stderr)
         return 2
-    if args.max_terms < 0 or args.max_references < 0:
-        print("js2-diagnose: error: --max-terms and --max-references count terms: 0 or more", file=sys.stderr)
-        return 2
     opt = DiagnoseOptions(holdout_trial=args.holdout_trial, fit_trials=args.fit_trials, kinds=args.kinds,
                           min_gain=args.min_gain, min_fit_gain=args.min_fit_gain, max_terms=args.max_terms,
-                          max_references=args.max_references, min_speed=args.min_speed,
-                          payload_removed=args.payload_removed, progress=not args.quiet and sys.stderr.isatty())
+                          min_speed=args.min_speed, payload_removed=args.payload_removed,
+                          progress=not args.quiet and sys.stderr.isatty())
     try:
         from js2spec.files import check_output_folder
         check_output_folder(args.outdir)

@@ -23,8 +23,7 @@ class DiagnoseOptions:
     kinds: list[str] | None = None
     min_gain: float = 0.12
     min_fit_gain: float | None = None     # None: MismatchSearch.MIN_FIT_GAIN (0.18), or min_gain when that is higher
-    max_terms: int = 4              # named effects the ladder accepts at most
-    max_references: int = 4         # references (structure reported 'unexplained') it accepts at most, apart
+    max_terms: int = 4
     min_speed: float = 0.01         # rad/s at the joint: slower samples are left out (friction is undefined at rest)
     payload_removed: bool = False   # a payload_change may read a negative mass (a tool taken off since identification)
     progress: bool = False
@@ -243,8 +242,7 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
         def progress(it, desc=""):
             return tqdm(it, desc=desc, leave=False, disable=None)   # None: terminals only
     search = MismatchSearch(library=library, kinds=opt.kinds, min_gain=opt.min_gain, max_terms=opt.max_terms,
-                            max_references=opt.max_references, min_fit_gain=opt.min_fit_gain,
-                            progress=progress).fit(rd)
+                            min_fit_gain=opt.min_fit_gain, progress=progress).fit(rd)
     for s, why in search.dropped_:
         notes.append(f"{s.fitted.kind} on {rd.joints[s.fitted.joint]} ({s.fitted.summary}): {why}")
     span = float(rd.t[-1] - rd.t[0])

@@ -23,8 +23,7 @@ backlash) its fit, select and report gains are that joint's own motor's, as it i
 named on one; select gain over all motors >= ``min_gain_all``; where the term asks for it (``Term.min_counts``: a
 torque offset), a torque of at least that many counts of the drive's current read-back; and the null below), adds
 its torque to the model and ranks again, until
-no candidate passes (at most ``max_terms`` named terms and, apart from them, ``max_references`` references) — a
-failing first-ranked candidate never hides a passing one, and a reference never takes a named term's step.
+no candidate passes (at most ``max_terms`` terms) — a failing first-ranked candidate never hides a passing one.
 
 A second null the data give, for a term that ties the residual to another recorded signal (``Term.shifted_columns``:
 load-dependent friction and the load; a thermal drift and the heating before it): its own column with that signal
@@ -38,8 +37,8 @@ the select rows by its ``Term.margin`` more (a quarter; 4 % for a backlash over 
 — when one passes, the motor is reported ``unexplained`` (structure remains that no named physics explains). A
 reference that ``Term.yields`` (the stiction step at reversals) steps aside when it tops the ladder and a named term
 passes every test on its motor. A ``Term.last_resort`` reference (a lag too large for a transmission) is not in the
-ladder: it is scored after it, on what the findings leave once they are estimated together, in the reference
-steps (``max_references``) left unused, so it never takes a share of torque a finding could have had.
+ladder: it is scored after it, on what the findings leave once they are estimated together, in the ladder steps
+(``max_terms``) they left unused, so it never takes a step or a share of torque a finding could have had.
 """
 from __future__ import annotations
 

@@ -29,16 +29,6 @@ def test_missing_model_is_one_clear_line(tmp_path, capsys):
     assert "model file not found" in err and "Traceback" not in err
 
 
-@pytest.mark.parametrize("flag", ["--max-terms", "--max-references"])
-def test_a_negative_count_of_terms_is_one_clear_line(tmp_path, capsys, flag):
-    """Named effects and references have their own steps (stop 47); either count below 0 is refused before any
-    work, with what to give instead."""
-    assert main(["model", "rec.mcap", "-o", str(tmp_path / "out"), flag, "-1"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--max-references" in err[0] and "0 or more" in err[0]
-    assert not (tmp_path / "out").exists()
-
-
 def test_strict_exit_code_and_outputs(tmp_path, capsys):
     rec = recording(json.dumps([{"kind": "load_dependent_friction", "joints": [1], "coefficient": 0.15}]))
     out = tmp_path / "diag"
