@@ -179,7 +179,7 @@ class MismatchSearch:
 
     def __init__(self, library: tuple[Term, ...] = LIBRARY, kinds=None, min_gain: float = 0.12,
                  min_gain_all: float = 0.01, max_terms: int = 4, progress=None,
-                 min_fit_gain: float | None = None, max_references: int = 4):
+                 min_fit_gain: float | None = None):
         unknown = set(kinds or ()) - set(KINDS) - set(REFERENCE_KINDS)
         if unknown:
             raise ValueError(f"unknown candidate kinds {sorted(unknown)}; known: {', '.join(KINDS)}")
@@ -188,7 +188,6 @@ class MismatchSearch:
         self.min_gain_all = min_gain_all
         self.min_fit_gain = max(min_gain, self.MIN_FIT_GAIN) if min_fit_gain is None else min_fit_gain
         self.max_terms = max_terms
-        self.max_references = max_references
         self.progress = progress
 
     def _term(self, kind: str) -> Term:
@@ -616,18 +615,12 @@ class MismatchSearch:
         tasks = [(t, j) for t in self.library for j in (range(rd.n) if t.per_joint else t.joints(rd))]
         taken = set()
 
-        def ladder(tasks, what="diagnosis step"):
-            # named terms and references each have their own steps (max_terms, max_references): a reference never
-            # takes a step a named term could have had
-            for step in range(self.max_terms + self.max_references):
-                room = {False: len(self.accepted_) < self.max_terms,
-                        True: len(self.references_) < self.max_references}
-                if not any(room[r] for r in {t.reference for t, _ in tasks}):
-                    break
+        def ladder(tasks, steps, what="diagnosis step"):
+            for step in range(steps):
                 scored = []
                 it = tasks if self.progress is None else self.progress(tasks, desc=f"{what} {step + 1}")
                 for term, j in it:
-                    if (term.kind, j) in taken or not room[term.reference]:
+                    if (term.kind, j) in taken:
                         continue
                     s = self._evaluate(rd, term, j, res, weights)
                     if s is not None:
@@ -678,13 +671,13 @@ class MismatchSearch:
 
         # the ladder of every term but the last resorts; they read what the findings leave, once those are estimated
         # together (a last resort never takes a ladder step, nor anything a finding explains)
-        ladder([tk for tk in tasks if not tk[0].last_resort])
+        ladder([tk for tk in tasks if not tk[0].last_resort], self.max_terms)
         self._joint_refit(rd, res, weights)
         self._reweighted_estimate(rd, res, weights)
         last = [tk for tk in tasks if tk[0].last_resort]
-        if last and len(self.references_) < self.max_references:
+        if last and len(self._order) < self.max_terms:
             self._fits.clear()                     # the refit moved every finding: no fit of the ladder's is current
-            ladder(last, "diagnosis, what the findings leave: step")
+            ladder(last, self.max_terms - len(self._order), "diagnosis, what the findings leave: step")
         self.final_ = {band: {"fit": _rms(r, m_fit), "select": _rms(r, m_sel), "holdout": _rms(r, m_rep)}
                        for band, r in res.items()}
         # arrays of the recording's size
