@@ -1679,6 +1679,25 @@ def test_a_play_read_on_a_flank_must_beat_an_offset_of_its_joints_angle():
     assert true_play.fitted.plausible, true_play.fitted.why_not
 
 
+def test_an_angle_offset_is_read_only_as_far_as_its_first_order_column_holds():
+    """AngleOffset.effect (stop 47): the column d tau / d q_j is a first-order reading, held to ``MAX_OFFSET`` (0.1
+    rad: the flank's play, whose column is this one times b/2, is held to b < 0.2). Foreign case 10 read 3.03 rad on
+    a wrist at stop 46, a reference that took one of the ladder's steps; refused, with the reason. A significant small
+    offset passes; an insignificant one does not."""
+    from diagnosis.library import AngleOffset
+
+    rd = SimpleNamespace(joints=["j1", "j2", "j3", "j4", "j5", "j6"])
+    assert AngleOffset.MAX_OFFSET == 0.1
+    eff, summary, ok, why = AngleOffset().effect(rd, 4, None, np.array([3.03]), np.array([0.01]))
+    assert not ok and "+3.03 rad beyond the 0.1 rad" in why and eff["offset"] == pytest.approx(3.03)
+    eff, summary, ok, why = AngleOffset().effect(rd, 4, None, np.array([-0.12]), np.array([0.01]))
+    assert not ok and "beyond" in why
+    eff, summary, ok, why = AngleOffset().effect(rd, 1, None, np.array([-0.05]), np.array([0.01]))
+    assert ok and why == "" and "off by -0.05 rad" in summary
+    eff, summary, ok, why = AngleOffset().effect(rd, 1, None, np.array([0.02]), np.array([0.01]))
+    assert not ok and why == "offset not significant"
+
+
 def test_a_mass_taken_off_a_link_is_named_only_when_the_user_says_one_was():
     """PayloadChange.effect (stop 46): a negative payload (a tool removed since identification) is refused with that
     reason unless ``rd.extra["payload_removed"]`` (``js2-diagnose --payload-removed``, DiagnoseOptions) says a mass
