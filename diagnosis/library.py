@@ -1066,9 +1066,16 @@ class PayloadChange(Term):
         """A mass whose centre lies near the axes of the joints beyond its link moves (almost) as if it sat on the
         next link out: the two readings are one point mass, which the data cannot place on one link or the other
         (on a real KUKA recording with 2 kg 2 cm off the last axis, the two links' fits put it 4 cm apart and 7 %
-        apart in mass, and the select rows preferred the inner link, whose centre of mass was the worse of the two). Payloads are carried by the tool, so among plausible payload candidates on links
-        further out whose mass agrees within ``SAME_MASS`` and whose point stays within ``SAME_POINT_M`` of the
-        chosen one along the motion, the outermost is named; the summary says the reading is the same point.
+        apart in mass, and the select rows preferred the inner link, whose centre of mass was the worse of the
+        two). Payloads are carried by the tool, so among plausible payload candidates on links further out whose
+        mass agrees within ``SAME_MASS`` and whose point stays within ``SAME_POINT_M`` of the chosen one along the
+        motion, the outermost is named; the summary says the reading is the same point.
+
+        Every link whose reading is that point (inner ones too) is reported with the name (``Scored.alike``;
+        diagnosis.json ``links_alike``, stop 47): the links the data leave open. On the TX40 the axes of joints 4-6
+        meet at the wrist centre, and a mass within a few centimetres of it reads alike on links 4, 5 and 6: the
+        independent simulator's payloads on link 4 or 5 with their centre 1-5 cm from it (cases 44, 56, 64, 104,
+        167) were named on link 6, counted wrong by a score that wants the very link.
 
         One point explains the data alike from either link: an outer reading that leaves more than ``SAME_FIT`` times
         the chosen one's SELECT residual is another physics, not the same point. Bench case 53 (0.75 kg on link 5,
@@ -1079,19 +1086,45 @@ class PayloadChange(Term):
         p0 = self.world_points(rd, chosen.fitted.joint, e0["com"])
         best = chosen
         for s in ranking:
-            f = s.fitted
-            if f.kind != self.kind or f.joint <= best.fitted.joint or not f.plausible or not acceptable(s):
+            if s.fitted.joint <= best.fitted.joint or not self._same_point(rd, s, chosen, p0, acceptable):
                 continue
-            if abs(f.effect["mass"] - e0["mass"]) > self.SAME_MASS * abs(e0["mass"]):
-                continue
-            if 1 - s.select_gain > self.SAME_FIT * max(1 - chosen.select_gain, 1e-12):
-                continue
-            gap = float(np.mean(np.linalg.norm(self.world_points(rd, f.joint, f.effect["com"]) - p0, axis=1)))
-            if gap < self.SAME_POINT_M:
-                best = s
-                best.note = (f"the same point mass as on {rd.arm.links[chosen.fitted.joint]} (within {gap * 100:.1f} "
-                             f"cm along the motion): the data cannot tell the two links apart; named on the outer")
+            best = s
+            best.note = (f"the same point mass as on {rd.arm.links[chosen.fitted.joint]} (within "
+                         f"{self._gap(rd, s, p0) * 100:.1f} cm along the motion): named on the outer link")
+        # every link whose reading is that point (inner links too; the point of the ladder's choice or of the one
+        # named): reported, so a reader (and a bench) knows which links the data leave open
+        alike = {best.fitted.joint, chosen.fitted.joint} | {
+            s.fitted.joint for s in ranking if self._same_point(rd, s, chosen, p0, acceptable)}
+        if best is not chosen:
+            pb = self.world_points(rd, best.fitted.joint, best.fitted.effect["com"])
+            alike |= {s.fitted.joint for s in ranking if self._same_point(rd, s, best, pb, acceptable)}
+        alike = sorted(alike)
+        if len(alike) > 1:
+            links = ", ".join(rd.arm.links[i] for i in alike)
+            best = dataclasses.replace(
+                best, alike=tuple(alike),
+                note=(best.note + "; " if best.note else "")
+                + f"the data cannot tell {links} apart (one point within {self.SAME_POINT_M * 100:.0f} cm along "
+                  "the motion)")
         return best
+
+    def _gap(self, rd, s, p0) -> float:
+        """Mean distance (m) along the motion between reading ``s``'s point and the points ``p0``."""
+        return float(np.mean(np.linalg.norm(self.world_points(rd, s.fitted.joint, s.fitted.effect["com"]) - p0,
+                                            axis=1)))
+
+    def _same_point(self, rd, s, ref, p_ref, acceptable) -> bool:
+        """Whether ranking entry ``s`` is another link's reading of the point mass ``ref`` (whose points along the
+        motion are ``p_ref``): a plausible, acceptable payload on another link, its mass within ``SAME_MASS``, its
+        select residual within ``SAME_FIT`` times ref's, its point within ``SAME_POINT_M``."""
+        f, e0 = s.fitted, ref.fitted.effect
+        if f.kind != self.kind or f.joint == ref.fitted.joint or not f.plausible or not acceptable(s):
+            return False
+        if abs(f.effect["mass"] - e0["mass"]) > self.SAME_MASS * abs(e0["mass"]):
+            return False
+        if 1 - s.select_gain > self.SAME_FIT * max(1 - ref.select_gain, 1e-12):
+            return False
+        return self._gap(rd, s, p_ref) < self.SAME_POINT_M
 
 
 class ThermalDrift(Term):

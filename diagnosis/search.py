@@ -73,6 +73,8 @@ class Scored:
                                              # term with a floor, ``Term.min_counts``)
     select_per_motor: tuple = ()             # (motors, before, after): weighted select-row sums of squares on them
                                              # (``Term.max_worse_motor``)
+    alike: tuple = ()                        # joints (links, for a payload) whose readings are the same physics as
+                                             # this one: the data cannot tell them apart (``Term.resolve``)
 
     def row(self, joints) -> dict:
         f = self.fitted
@@ -82,7 +84,7 @@ class Scored:
                 "holdout_gain": self.holdout_gain,
                 "plausible": f.plausible, "why_not": f.why_not or self.rejected, "summary": f.summary,
                 "effect": f.effect, "coefficients": f.coef.tolist(), "coefficients_std": f.coef_std.tolist(),
-                "band": self.band}
+                "band": self.band, **({"links_alike_index": [int(i) for i in self.alike]} if self.alike else {})}
 
 
 def _cancels(coef: np.ndarray, G: np.ndarray, bb: float) -> bool:

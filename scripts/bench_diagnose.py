@@ -386,7 +386,7 @@ def run_case(case: dict, model: Path, robot, base_cfg: dict, out: Path, keep: bo
     named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
               "report_gain": f["holdout_gain"], "select_gain": f["select_gain"], "fit_gain": f["fit_gain"],
               "select_gain_all": f["select_gain_all"], "select_gain_capped": f["select_gain_capped"],
-              "hyper": f["hyper"]} for f in res.findings()]
+              "hyper": f["hyper"], **_alike(f)} for f in res.findings()]
     unexplained = res.unexplained()
     row = {"seed": case["seed"], "case": case, "effects": case["effects"], "cycle_hz": case.get("cycle_hz") / every,
            "named": named, "unexplained": [u["joint_index"] for u in unexplained],
@@ -402,6 +402,31 @@ def _key(f: dict, joint: int) -> tuple:
     """What must match for a name to be right: kind and joint (link for a payload), and for a coupling the joint it
     comes from as well."""
     return (f["kind"], joint) + ((f.get("from_joint"),) if f["kind"] == "coupling" else ())
+
+
+def _alike(finding: dict) -> dict:
+    """A bench row's record of the links a named payload's reading cannot be told apart from (the diagnosis' own
+    ``links_alike_index``, :meth:`diagnosis.library.PayloadChange.resolve`): empty when it names none."""
+    return {"links_alike": finding["links_alike_index"]} if finding.get("links_alike_index") else {}
+
+
+def _alike_hits(row: dict) -> tuple[int, int]:
+    """(true payloads named on another link that the named reading says it cannot tell apart from it, those names):
+    counted apart from the strict score, which wants the very link."""
+    named = {_key(f["effect"], f["joint"]) for f in row["named"]}
+    found = names = 0
+    used = set()
+    for e in row["effects"]:
+        if e["kind"] != "payload_change" or _key(e, e["joints"][0]) in named:
+            continue
+        g = next((k for k, f in enumerate(row["named"]) if f["kind"] == "payload_change" and k not in used
+                  and e["joints"][0] in f.get("links_alike", ())), None)
+        if g is not None:
+            used.add(g)
+            found += 1
+            names += _key(row["named"][g]["effect"], row["named"][g]["joint"]) not in {
+                _key(x, x["joints"][0]) for x in row["effects"]}
+    return found, names
 
 
 def score(rows: list[dict]) -> dict:
@@ -454,7 +479,9 @@ def score(rows: list[dict]) -> dict:
         for key, f in named.items():
             if key not in true_keys:
                 false_names[f["kind"]] += 1
+    alike = [_alike_hits(row) for row in rows]
     return {"confusion": conf, "false_names": false_names, "coupling_wrong_source": wrong_source,
+            "alike_found": sum(a for a, _ in alike), "alike_names": sum(b for _, b in alike),
             "effects_found": hits, "effects": total,
             "effect_rate": hits / total if total else float("nan"),
             "visible_found": vis_hits, "visible": vis_total,
@@ -498,6 +525,11 @@ def print_report(s: dict, rows: list[dict]) -> None:
           f"clean cases named nothing: {s['clean_none']}/{s['clean']} = {s['clean_rate']:.0%}")
     print(f"right effect and joint, effects the residual shows (exact effect removes >= {MIN_VISIBLE:.0%} of its "
           f"motor's residual): {s['visible_found']}/{s['visible']} = {s['visible_rate']:.0%}")
+    if s.get("alike_found"):
+        found = s["effects_found"] + s["alike_found"]
+        print(f"counting a payload named on another link that the diagnosis reports it cannot tell apart from the "
+              f"true one (links_alike): {found}/{s['effects']} = {found / s['effects']:.0%}, "
+              f"{sum(s['false_names'].values()) - s['alike_names']} false names")
     for seed, kind, j, v, found in s["below_floor"]:
         print(f"  below the floor: case {seed:3d} {kind} on joint {j}: the exact effect removes {v:.1%} "
               f"({'named anyway' if found else 'not named'})")

@@ -182,7 +182,7 @@ def _diagnosed(model: Path, logs: list[Path], case: dict, **fields) -> dict:
     t1 = time.time()
     result = diagnose(model, logs if len(logs) > 1 else logs[0])
     named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
-              "report_gain": f["holdout_gain"]} for f in result.findings()]
+              "report_gain": f["holdout_gain"], **sim_bench._alike(f)} for f in result.findings()]
     return {"seed": case["seed"], "case": case, "cycle_hz": float(case["rate_hz"]), "files": len(logs),
             "controller": case.get("controller"), "named": named,
             "unexplained": [u["joint_index"] for u in result.unexplained()], **fields,

@@ -236,7 +236,7 @@ def run_case(case: dict, ws: Workspace, out: Path, rediagnose: bool = False) -> 
     result = diagnose(ws.model, log)
     t2 = time.time()
     named = [{"kind": f["kind"], "joint": int(f["effect"]["joints"][0]), "effect": f["effect"],
-              "report_gain": f["holdout_gain"]} for f in result.findings()]
+              "report_gain": f["holdout_gain"], **sim_bench._alike(f)} for f in result.findings()]
     row = {"seed": case["seed"], "case": case, "recording": f"kuka_{case['recording']}", "effects": effects,
            "cycle_hz": 200.0, "named": named, "unexplained": [u["joint_index"] for u in result.unexplained()],
            "visibility": vis, "sim_s": None, "diagnose_s": round(t2 - t1, 1)}

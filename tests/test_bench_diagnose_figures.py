@@ -2775,3 +2775,26 @@ def test_stop44_the_clean_real_conditions_lose_two_asymmetries_and_nothing_else_
         assert set(a[k]) - set(b[k]) == {("asymmetric_friction", "lwr_3_joint")} and set(b[k]) < set(a[k])
     assert sum(1 for v in b.values() if v) == 7
     assert names(old["payload_rows"]) == names(new["payload_rows"])
+
+
+def test_a_payload_named_on_a_link_the_diagnosis_cannot_tell_apart_is_counted_apart_from_the_strict_score():
+    """bench_diagnose.score (stop 47): a true payload named on another link is a miss and a false name in the strict
+    score, always; counted apart (``alike_found``, ``alike_names``) only when the named reading's ``links_alike``
+    (the diagnosis' own ``links_alike_index``) holds the true link. A payload named elsewhere with no such set, or
+    with a set without the true link, stays wrong in both counts."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import bench_diagnose
+
+    def row(named_link, alike=None, true_link=3):
+        f = {"kind": "payload_change", "joint": named_link,
+             "effect": {"kind": "payload_change", "joints": [named_link], "mass": 2.5, "com": [0, 0, 0]},
+             "report_gain": 0.9, **({"links_alike": alike} if alike is not None else {})}
+        return {"seed": 0, "named": [f], "effects": [{"kind": "payload_change", "joints": [true_link], "mass": 2.5,
+                                                      "com": [0, 0, 0]}], "visibility": [1.0]}
+
+    assert bench_diagnose._alike({"links_alike_index": [3, 4, 5]}) == {"links_alike": [3, 4, 5]}
+    assert bench_diagnose._alike({}) == {}
+    rows = [row(5, [3, 4, 5]), row(5, [4, 5]), row(5), row(3, [3, 4, 5])]
+    s = bench_diagnose.score(rows)
+    assert s["effects_found"] == 1 and s["false_names"]["payload_change"] == 3      # strict: only the very link
+    assert s["alike_found"] == 1 and s["alike_names"] == 1                          # the first row, apart

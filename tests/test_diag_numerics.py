@@ -612,8 +612,17 @@ def test_one_point_mass_is_moved_to_the_outer_link_only_when_it_explains_the_dat
     inner = scored(4, 0.886)
     assert term.resolve(rd, inner, [inner, scored(5, 0.637)]) is inner           # 3.2x the residual: kept
     outer = scored(5, 0.80)                                                       # 1.75x: the same point, moved
-    assert term.resolve(rd, inner, [inner, outer]) is outer and "same point mass" in outer.note
+    named = term.resolve(rd, inner, [inner, outer])
+    assert named.fitted is outer.fitted and "same point mass" in named.note
+    assert named.alike == (4, 5) and "cannot tell link5, link6 apart" in named.note   # stop 47: both reported
+    assert named.row(rd.arm.links)["links_alike_index"] == [4, 5]
     assert term.resolve(rd, inner, [inner, scored(5, 0.80, mass=0.5)]) is inner  # another mass
+    # the ladder's choice on the outer link already: an inner reading of the same point is reported with it (the
+    # name stays on the outer link), one of another mass is not
+    chosen = scored(5, 0.80)
+    named = term.resolve(rd, chosen, [chosen, scored(4, 0.75)])
+    assert named.fitted is chosen.fitted and named.alike == (4, 5) and "named on the outer" not in named.note
+    assert term.resolve(rd, chosen, [chosen, scored(4, 0.75, mass=0.5)]) is chosen
 
 
 def test_a_play_on_a_stiff_contact_is_named_with_its_stiffness_bounded_from_below():
