@@ -2461,33 +2461,11 @@ class Coupling(Term):
                 ok, why)
 
 
-class CouplingFrom(Coupling):
-    """:class:`Coupling` from one joint i (``source``) that is not joint j's neighbour nor shares a motor with it:
-    the independent simulator's gear errors couple any two joints (10 of its 15 couplings over cases 0-179 couple
-    joints two or more apart, which the neighbours' grid never tried). Fitted and scored on the motors that drive j
-    or i alone: fitting one far pair on every motor let the kinematic path, whose column reaches them all through
-    the inertia matrix, follow the model's own error there (a grid over every joint with :class:`Coupling`'s
-    motors, stop 46: the two paths of case 105's true neighbour coupling then disagreed, -0.061 against -0.108).
-    One instance per source joint (``MAX_SOURCES`` of them; a source past the arm's joints tries nothing)."""
-    MAX_SOURCES = 8
-
-    def __init__(self, source: int):
-        self.source = source
-
-    def grid(self, rd, j):
-        i = self.source
-        return [i] if i < rd.n and i != j and i not in Coupling.grid(self, rd, j) else []
-
-    def motors(self, rd, j):
-        K = np.abs(np.asarray(rd.K, float))
-        return np.flatnonzero(K[[j, min(self.source, rd.n - 1)]].sum(axis=0) > 0)
-
-
 LIBRARY: tuple[Term, ...] = (FrictionRefit(), BreakawayTransient(), TorqueOffset(), Stribeck(), Cogging(), CoggingWide(),
                              CoggingPassBand(), PayloadChange(), ThermalDrift(),
                              LoadDependentFriction(), AsymmetricFriction(), JointElasticity(), SoftCompliance(), Backlash(),
                              AngleOffset(), BacklashOnFlank(),
                              BacklashOnStiffFlank(), BacklashRattle(), ElasticRattle(), CompliantJoint(),
-                             Coupling(), *(CouplingFrom(i) for i in range(CouplingFrom.MAX_SOURCES)))
+                             Coupling())
 KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if not t.reference))   # the named effects (hil_sim's kinds)
 REFERENCE_KINDS = tuple(dict.fromkeys(t.kind for t in LIBRARY if t.reference))
