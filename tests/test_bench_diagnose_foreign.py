@@ -11,6 +11,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 README = " ".join((ROOT / "README.md").read_text().split())
 BENCH = ROOT / "docs" / "bench"
+DOC = " ".join((ROOT / "docs" / "diagnosis.md").read_text().split())
 
 
 def _set(name: str):
@@ -322,3 +323,121 @@ def test_stop46_the_kept_simulator_cases_against_stop45():
     differ = [a["seed"] for a, b in zip(d["stop45"], d["stop46"]) if names(a) != names(b)]
     assert differ == [20, 64, 65, 85, 147, 390]
     assert all(f["effect"]["mass"] > 0 for r in d["stop46"] for f in r["named"] if f["kind"] == "payload_change")
+
+
+def _set47(name: str, variant: str = ""):
+    return _bench(f"diagnose-bench-{name}-2026-11-29-stop47{variant}.json")
+
+
+STOP47_SETS = ("foreign", "foreign-fresh", "foreign-new", "foreign-out", "foreign-140")
+
+
+@pytest.mark.parametrize("name,seeds,found,false,clean,twins", [
+    ("foreign", range(0, 40), (41, 62), 2, (2, 2), (36, 38)),
+    ("foreign-fresh", range(40, 80), (22, 48), 8, (5, 6), (34, 34)),
+    ("foreign-new", range(80, 100), (10, 19), 0, (5, 6), (14, 14)),
+    ("foreign-out", range(100, 140), (22, 44), 6, (9, 9), (29, 31)),
+    ("foreign-140", range(140, 180), (30, 46), 4, (9, 9), (30, 31)),
+])
+def test_stop47_far_couplings_the_committed_rows_give_the_figures(name, seeds, found, false, clean, twins):
+    """Stop 47's variant tried and not kept: every foreign case and twin 0-179 diagnosed with the angle offset's
+    bound, the payload's links alike and couplings between any two joints (619dd93), on stop 46's recordings."""
+    _assert_set(_set47(name, "-farcoupling"), seeds, found, false, clean, twins)
+
+
+def test_stop47_far_couplings_against_stop46_over_0_179():
+    """The far-coupling variant over cases 0-179: right names 120 -> 125 of 219, false names 19 -> 20, clean recordings 174 -> 173 of 180;
+    counting a payload named on a link the diagnosis reports alike with the true one, 129 right and 16 false names.
+    Seven cases differ: 10 and 24 regain their coggings, 18, 49 and 58 gain their far couplings (right source, c
+    within 0.005), 120 and 178 gain a false name (a thermal drift; a far coupling, on 178's twin too)."""
+    now = [_set47(n, "-farcoupling") for n in STOP47_SETS]
+    before = [_set46(f"{n}-2026-11-29-stop46") for n in STOP47_SETS]
+
+    def total(sets):
+        return (sum(s["effects_found"] for _, s, _ in sets), sum(s["effects"] for _, s, _ in sets),
+                sum(sum(s["false_names"].values()) for _, s, _ in sets),
+                sum(s["clean_none"] + t["clean_none"] for _, s, t in sets), sum(s["clean"] + t["clean"] for _, s, t in sets))
+
+    assert total(before) == (120, 219, 19, 174, 180) and total(now) == (125, 219, 20, 173, 180)
+    alike = (sum(s["effects_found"] + s["alike_found"] for _, s, _ in now),
+             sum(sum(s["false_names"].values()) - s["alike_names"] for _, s, _ in now))
+    assert alike == (129, 16)
+    assert [sum(s["alike_found"] for _, s, _ in before)] == [0]        # stop 46 reported no links alike
+
+    def names(r):
+        return sorted((f["kind"], f["joint"]) + ((f["effect"]["from_joint"],) if f["kind"] == "coupling" else ())
+                      for f in r["named"])
+
+    rows_now = {(k, r["seed"]): r for d, _, _ in now for k in ("rows", "twins") for r in d[k]}
+    rows_before = {(k, r["seed"]): r for d, _, _ in before for k in ("rows", "twins") for r in d[k]}
+    differ = sorted(key for key in rows_now if names(rows_now[key]) != names(rows_before[key]))
+    assert differ == [("rows", 10), ("rows", 18), ("rows", 24), ("rows", 49), ("rows", 58), ("rows", 120),
+                      ("rows", 178), ("twins", 178)]
+    for seed, joint, source in ((18, 1, 5), (49, 0, 5), (58, 1, 3)):
+        truth = next(e for e in rows_now["rows", seed]["effects"] if e["kind"] == "coupling")
+        got = next(f for f in rows_now["rows", seed]["named"] if f["kind"] == "coupling")
+        assert (got["joint"], got["effect"]["from_joint"]) == (joint, source) == (truth["joints"][0],
+                                                                                  truth["from_joint"])
+        assert abs(got["effect"]["coefficient"] - truth["coefficient"]) < 0.005
+    for key in (("rows", 178), ("twins", 178)):
+        assert ("coupling", 0, 3) in names(rows_now[key])
+    for seed in (10, 24):
+        assert any(f["kind"] == "cogging" for f in rows_now["rows", seed]["named"])
+    # the alike links hold the true link where they count (the wrist centre's payloads)
+    for seed in (44, 56, 64, 104):
+        row = rows_now["rows", seed]
+        truth = next(e["joints"][0] for e in row["effects"] if e["kind"] == "payload_change")
+        assert any(truth in f.get("links_alike", ()) and f["joint"] != truth for f in row["named"])
+    assert ("it named the far couplings of 18, 49 and 58 (right pair, c within 0.005) and a false one on case 178 "
+            "and its clean twin") in DOC
+
+
+@pytest.mark.parametrize("name,seeds,found,false,clean,twins", [
+    ("foreign", range(0, 40), (40, 62), 2, (2, 2), (36, 38)),
+    ("foreign-fresh", range(40, 80), (20, 48), 9, (5, 6), (34, 34)),
+    ("foreign-new", range(80, 100), (10, 19), 0, (5, 6), (14, 14)),
+    ("foreign-out", range(100, 140), (22, 44), 6, (9, 9), (29, 31)),
+    ("foreign-140", range(140, 180), (30, 46), 3, (9, 9), (31, 31)),
+])
+def test_stop47_the_committed_rows_give_the_figures(name, seeds, found, false, clean, twins):
+    """Stop 47's rows: every foreign case and twin 0-179 diagnosed again with this release (the angle offset's bound,
+    the payload's links alike) on stop 46's recordings."""
+    _assert_set(_set47(name), seeds, found, false, clean, twins)
+
+
+def test_stop47_against_stop46_over_0_179_and_the_readme():
+    """Over cases 0-179: right names 120 -> 122 of 219, false names 19 -> 20, clean recordings 174 of 180 both;
+    counting a payload named on a link the diagnosis reports alike with the true one, 126 right and 16 false names.
+    Three cases differ: 10 and 24 regain their coggings, 120 gains a false thermal drift (the ladder step an angle
+    offset past the bound took at stop 46)."""
+    now = [_set47(n) for n in STOP47_SETS]
+    before = [_set46(f"{n}-2026-11-29-stop46") for n in STOP47_SETS]
+
+    def total(sets):
+        return (sum(s["effects_found"] for _, s, _ in sets), sum(s["effects"] for _, s, _ in sets),
+                sum(sum(s["false_names"].values()) for _, s, _ in sets),
+                sum(s["clean_none"] + t["clean_none"] for _, s, t in sets), sum(s["clean"] + t["clean"] for _, s, t in sets))
+
+    assert total(before) == (120, 219, 19, 174, 180) and total(now) == (122, 219, 20, 174, 180)
+    assert (sum(s["effects_found"] + s["alike_found"] for _, s, _ in now),
+            sum(sum(s["false_names"].values()) - s["alike_names"] for _, s, _ in now)) == (126, 16)
+
+    def names(r):
+        return sorted((f["kind"], f["joint"]) for f in r["named"])
+
+    rows_now = {(k, r["seed"]): r for d, _, _ in now for k in ("rows", "twins") for r in d[k]}
+    rows_before = {(k, r["seed"]): r for d, _, _ in before for k in ("rows", "twins") for r in d[k]}
+    assert sorted(key for key in rows_now if names(rows_now[key]) != names(rows_before[key])) == [
+        ("rows", 10), ("rows", 24), ("rows", 120)]
+    assert ("cogging", 2) in names(rows_now["rows", 10]) and ("cogging", 4) in names(rows_now["rows", 24])
+    assert ("thermal_drift", 3) in names(rows_now["rows", 120])
+    alike = {}
+    for key, row in rows_now.items():
+        for f in row["named"]:
+            if f.get("links_alike"):
+                alike[key[1]] = f["links_alike"]
+    truth = {seed: next(e["joints"][0] for e in rows_now["rows", seed]["effects"] if e["kind"] == "payload_change")
+             for seed in (44, 56, 64, 104)}
+    assert all(truth[seed] in alike[seed] for seed in truth)
+    assert ("**Over cases 0-179: 122 of 219 right (56 %; stop 46's code 120), 20 false names (19), clean 174 of "
+            "180 (174)**") in README
