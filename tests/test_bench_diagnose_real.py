@@ -359,3 +359,23 @@ def test_stop46_the_real_bench_names_what_stop_44_named_but_one_offset():
     assert rows[144]["seed"] == 144 and len(rows[144]["unexplained"]) == 4
     assert ("**112 of 204 right (113 with stop 45's code), 19 false names (19), clean 23 of 23**"
             in " ".join(README.split()))
+
+
+def test_stop47_the_real_bench_names_what_stop_46_named_and_reports_the_links_alike():
+    """The 180 real-bench cases with stop 47's code (`diagnose-bench-real-all-2026-11-29-stop47`): every case names
+    what stop 46's rows name (112 of 204 right, 19 false names, clean 23 of 23); counting a payload named on a link
+    the diagnosis reports alike with the true one (cases 87, 105, 115: the KUKA's lwr_4/lwr_5 and lwr_6/lwr_7
+    readings of one point), 115 of 204 and 16 false names."""
+    rows = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-all-2026-11-29-stop47.json").read_text())["rows"]
+    before = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-all-2026-11-29-stop46.json").read_text())["rows"]
+    s = bench_real.sim_bench.score(rows)
+    assert (s["effects_found"], s["effects"], sum(s["false_names"].values())) == (112, 204, 19)
+    assert (s["clean_none"], s["clean"]) == (23, 23)
+    assert [_names_of(r) for r in rows] == [_names_of(r) for r in before]
+    assert (s["effects_found"] + s["alike_found"], sum(s["false_names"].values()) - s["alike_names"]) == (115, 16)
+    moved = sorted(r["seed"] for r in rows for f in r["named"] if f.get("links_alike")
+                   and f["joint"] not in [e["joints"][0] for e in r["effects"] if e["kind"] == "payload_change"]
+                   and any(e["joints"][0] in f["links_alike"] for e in r["effects"] if e["kind"] == "payload_change"))
+    assert moved == [87, 105, 115]
+    assert ("**112 of 204 right (112 with stop 46's code), 19 false names (19), clean 23 of 23; counting a payload "
+            "named on a link reported alike with the true one, 115 and 16**") in " ".join(README.split())
