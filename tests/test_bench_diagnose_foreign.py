@@ -441,3 +441,22 @@ def test_stop47_against_stop46_over_0_179_and_the_readme():
     assert all(truth[seed] in alike[seed] for seed in truth)
     assert ("**Over cases 0-179: 122 of 219 right (56 %; stop 46's code 120), 20 false names (19), clean 174 of "
             "180 (174)**") in README
+
+
+def test_stop47_the_kept_simulator_cases_name_what_stop_46_named():
+    """The 98 hil_sim bench cases whose recordings are kept, diagnosed with this release
+    (`diagnose-bench-sim-kept-2026-11-29-stop47.json`, beside stop 46's committed rows): the same names in every
+    case, 121 right and 13 false; no payload there reads alike on two links."""
+    d = json.loads((BENCH / "diagnose-bench-sim-kept-2026-11-29-stop47.json").read_text())
+    old = json.loads((BENCH / "diagnose-bench-sim-kept-2026-11-29-stop46.json").read_text())
+    assert d["stop46"] == old["stop46"]
+
+    def names(r):
+        return sorted((f["kind"], f["joint"]) for f in r["named"])
+
+    assert [r["seed"] for r in d["stop47"]] == [r["seed"] for r in d["stop46"]]
+    assert [names(r) for r in d["stop47"]] == [names(r) for r in d["stop46"]]
+    right = sum(len(set(names(r)) & {(e["kind"], e["joints"][0]) for e in r["effects"]}) for r in d["stop47"])
+    false = sum(len(set(names(r)) - {(e["kind"], e["joints"][0]) for e in r["effects"]}) for r in d["stop47"])
+    assert (len(d["stop47"]), right, false) == (98, 121, 13)
+    assert not [f for r in d["stop47"] for f in r["named"] if f.get("links_alike")]
