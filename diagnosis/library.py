@@ -1072,8 +1072,8 @@ class PayloadChange(Term):
         motion, the outermost is named; the summary says the reading is the same point.
 
         Every link whose reading is that point (inner ones too) is reported with the name (``Scored.alike``;
-        diagnosis.json ``links_alike_index``, stop 47): the links the data leave open. On the TX40 the axes of joints 4-6
-        meet at the wrist centre, and a mass within a few centimetres of it reads alike on links 4, 5 and 6: the
+        diagnosis.json ``links_alike_index``, stop 47): the links the data leave open. On the TX40 the axes of
+        joints 4-6 meet at the wrist centre, and a mass within a few centimetres of it reads alike on links 4-6: the
         independent simulator's payloads on link 4 or 5 with their centre 1-5 cm from it (cases 44, 56, 64, 104,
         167) were named on link 6, counted wrong by a score that wants the very link.
 

@@ -346,10 +346,11 @@ def test_stop47_far_couplings_the_committed_rows_give_the_figures(name, seeds, f
 
 
 def test_stop47_far_couplings_against_stop46_over_0_179():
-    """The far-coupling variant over cases 0-179: right names 120 -> 125 of 219, false names 19 -> 20, clean recordings 174 -> 173 of 180;
-    counting a payload named on a link the diagnosis reports alike with the true one, 129 right and 16 false names.
-    Seven cases differ: 10 and 24 regain their coggings, 18, 49 and 58 gain their far couplings (right source, c
-    within 0.005), 120 and 178 gain a false name (a thermal drift; a far coupling, on 178's twin too)."""
+    """The far-coupling variant over cases 0-179: right names 120 -> 125 of 219, false names 19 -> 20, clean
+    recordings 174 -> 173 of 180; counting a payload named on a link the diagnosis reports alike with the true one,
+    129 right and 16 false names. Seven cases differ: 10 and 24 regain their coggings, 18, 49 and 58 gain their far
+    couplings (right source, c within 0.005), 120 and 178 gain a false name (a thermal drift; a far coupling, on
+    178's twin too). The README and docs/diagnosis.md say why it was not kept."""
     now = [_set47(n, "-farcoupling") for n in STOP47_SETS]
     before = [_set46(f"{n}-2026-11-29-stop46") for n in STOP47_SETS]
 
