@@ -414,6 +414,7 @@ def _alike_hits(row: dict) -> tuple[int, int]:
     """(true payloads named on another link that the named reading says it cannot tell apart from it, those names):
     counted apart from the strict score, which wants the very link."""
     named = {_key(f["effect"], f["joint"]) for f in row["named"]}
+    true_keys = {_key(e, e["joints"][0]) for e in row["effects"]}
     found = names = 0
     used = set()
     for e in row["effects"]:
@@ -424,8 +425,7 @@ def _alike_hits(row: dict) -> tuple[int, int]:
         if g is not None:
             used.add(g)
             found += 1
-            names += _key(row["named"][g]["effect"], row["named"][g]["joint"]) not in {
-                _key(x, x["joints"][0]) for x in row["effects"]}
+            names += _key(row["named"][g]["effect"], row["named"][g]["joint"]) not in true_keys
     return found, names
 
 
