@@ -524,12 +524,13 @@ class OwnOffsets:
     names: list
 
 
-def own_offsets(model: IdentifiedModel, min_speed: float = 0.01, block_s: float = 1.0) -> OwnOffsets | None:
-    """:class:`OwnOffsets` of the model's fitted ``inputs`` (model.yaml; validation recordings left out) that can
-    still be read where they were (the path as written, else beside model.yaml) and are unchanged (sha256, or the
-    data's); None when none can. A constant a new recording carries that the model's own recording carries too is
-    the model's structure (js2-identify leaves offsets out by cross-validation), not physics the new one adds."""
-    parts, names = [], []
+def own_recordings(model: IdentifiedModel, min_speed: float = 0.01) -> list[tuple[str, "ResidualData"]]:
+    """The model's fitted ``inputs`` (model.yaml; validation recordings left out) that can still be read where they
+    were (the path as written, else beside model.yaml) and are unchanged (sha256, or the data's), each as (file name,
+    its :class:`ResidualData` against the model); empty when none can. What the model leaves on the recordings it was
+    identified from is its own structure: a reading a new recording shares with them is not physics the new one
+    adds (:func:`own_offsets`, :meth:`diagnosis.library.Coupling.own_reading`)."""
+    out = []
     base = Path(model.path).parent if model.path else Path(".")
     for item in model.inputs:
         if item.get("role") == "validation" or not item.get("path"):
@@ -542,11 +543,30 @@ def own_offsets(model: IdentifiedModel, min_speed: float = 0.01, block_s: float 
             lg = read_log(p)
             if not model.is_recording(item, lg):
                 continue
-            rd = residual_data(model, lg, min_speed=min_speed)
+            out.append((p.name, residual_data(model, lg, min_speed=min_speed)))
         except (Js2Error, OSError, ValueError):
             continue
-        parts.append((rd.residual, rd.mask, rd.t))
-        names.append(p.name)
+    return out
+
+
+def extra_once(rd: "ResidualData", key: str):
+    """``rd.extra[key]``, made on first use where it is kept as a callable (None when absent, or ``rd`` has no
+    ``extra``)."""
+    value = getattr(rd, "extra", {}).get(key)
+    if callable(value):
+        value = rd.extra[key] = value()
+    return value
+
+
+def own_offsets(model: IdentifiedModel, min_speed: float = 0.01, block_s: float = 1.0,
+                recordings: list | None = None) -> OwnOffsets | None:
+    """:class:`OwnOffsets` of the model's own recordings (:func:`own_recordings`, or ``recordings`` as it returns
+    them); None when none can be read. A constant a new recording carries that the model's own recording carries
+    too is the model's structure (js2-identify leaves offsets out by cross-validation), not physics the new one
+    adds."""
+    recordings = own_recordings(model, min_speed) if recordings is None else recordings
+    parts = [(rd.residual, rd.mask, rd.t) for _, rd in recordings]
+    names = [name for name, _ in recordings]
     if not parts:
         return None
     n = parts[0][0].shape[1]

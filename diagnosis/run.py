@@ -12,7 +12,7 @@ from js2spec.model import IdentifiedModel, load_model
 
 from .library import LIBRARY, ThermalDrift, model_data_library
 from .locate import band_shares, dominant_band, locate
-from .residual import ResidualData, own_offsets, part_rows, residual_data
+from .residual import ResidualData, extra_once, own_offsets, own_recordings, part_rows, residual_data
 from .search import MismatchSearch, Scored, _on_motors
 
 
@@ -227,8 +227,11 @@ def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
     rd = residual_data(mdl, log, holdout_trial=opt.holdout_trial, fit_trials=opt.fit_trials,
                        min_speed=opt.min_speed)
     rd.extra["payload_removed"] = bool(opt.payload_removed)
-    if not own:       # what the model leaves on its own recordings, read only if an offset is about to be named
-        rd.extra["own_offsets"] = lambda: own_offsets(mdl, min_speed=opt.min_speed)
+    if not own:       # what the model leaves on its own recordings, read only if an offset or a coupling is about to
+        # be named (read once for both)
+        rd.extra["own_recordings"] = lambda: own_recordings(mdl, min_speed=opt.min_speed)
+        rd.extra["own_offsets"] = lambda: own_offsets(mdl, min_speed=opt.min_speed,
+                                                      recordings=extra_once(rd, "own_recordings"))
     if rd.signals.note and rd.signals.note != "no lost or invalid cycles":
         notes.append(rd.signals.note)
     if ThermalDrift.too_short(rd) and (opt.kinds is None or "thermal_drift" in opt.kinds):

@@ -65,3 +65,26 @@ def test_a_coupling_into_the_hand_joint_is_below_the_noise():
     assert np.all(hand < 0.5 * noise), hand / noise
     wrist = rms(0.08 * Coupling().columns_low(rd, 4, 3)[:, :, 0])
     assert wrist[3] > noise[3], wrist / noise
+
+
+def test_a_far_pair_is_tried_once_on_the_two_joints_motors():
+    """CouplingFrom (stop 47): a gear error between joints that are not neighbours (the independent simulator's
+    couplings join any two joints) is tried on the motors of those two joints alone, once per pair: never a pair
+    the neighbours' grid (``Coupling.grid``) already tries, nor a source past the arm's joints."""
+    from types import SimpleNamespace
+
+    from diagnosis.library import LIBRARY, Coupling, CouplingFrom
+
+    K = np.eye(6)
+    K[5, 4] = 0.3                                               # a wrist whose last joint shares motor 5
+    rd = SimpleNamespace(n=6, K=K)
+    far = [t for t in LIBRARY if isinstance(t, CouplingFrom)]
+    assert [t.source for t in far] == list(range(CouplingFrom.MAX_SOURCES)) and far[0].kind == "coupling"
+    for j in range(6):
+        near = Coupling().grid(rd, j)
+        tried = [i for t in far for i in t.grid(rd, j)]
+        assert sorted(tried + near) == [i for i in range(6) if i != j] and not set(tried) & set(near)
+    assert CouplingFrom(0).grid(rd, 3) == [0] and CouplingFrom(2).grid(rd, 3) == []       # a neighbour: not here
+    assert CouplingFrom(6).grid(rd, 0) == [] and CouplingFrom(7).grid(rd, 0) == []        # no such joint
+    assert list(CouplingFrom(0).motors(rd, 3)) == [0, 3]
+    assert list(CouplingFrom(5).motors(rd, 2)) == [2, 4, 5]          # joint 6 is driven by motors 5 and 6
