@@ -36,6 +36,9 @@ def test_concealed_coupling_is_named_on_the_right_pair(joint, source, c):
     # proven on the report rows the search never saw
     assert res.search.score(res.rd, top["band"]) > 0.1
     assert [f["kind"] for f in findings].count("coupling") == 1
+    # the model's own recording was read (once, for the offsets and the couplings) and does not carry the pair
+    own = res.rd.extra.get("own_recordings")
+    assert isinstance(own, list) and own and all(name.endswith(".mcap") for name, _ in own)
 
 
 def test_clean_recording_gets_no_coupling():
@@ -88,3 +91,61 @@ def test_a_far_pair_is_tried_once_on_the_two_joints_motors():
     assert CouplingFrom(6).grid(rd, 0) == [] and CouplingFrom(7).grid(rd, 0) == []        # no such joint
     assert list(CouplingFrom(0).motors(rd, 3)) == [0, 3]
     assert list(CouplingFrom(5).motors(rd, 2)) == [2, 4, 5]          # joint 6 is driven by motors 5 and 6
+
+
+def test_a_pair_the_models_own_recording_reads_too_is_not_a_new_gear_error():
+    """Coupling.own_reading / effect (stop 48): a coupling the model's own recordings carry as well (both paths
+    significant, of its sign, at least ``OWN_SHARE`` of it) is the model's, not a gear error the arm has come to
+    since. Here a recording with j5 from j4 at c = 0.08 stands as the model's own: the same pair on a second
+    recording of that coupling is refused, with the own reading in the reason; with the clean recording as the
+    model's own the pair reads near 0 there and the coupling is kept."""
+    from diagnosis.library import Coupling
+    from diagnosis.residual import residual_data
+    from js2spec.log import read_log
+    from js2spec.model import load_model
+
+    model = load_model(clean_model())
+    coupled = recording(json.dumps([{"kind": "coupling", "joints": [4], "from_joint": 3, "coefficient": 0.08}]))
+    rd = residual_data(model, read_log(coupled))
+    own_coupled = residual_data(model, read_log(coupled))
+    own_clean = residual_data(model, read_log(recording(json.dumps([]))))
+    term = Coupling()
+    coef, std = np.array([0.08, 0.081]), np.array([0.002, 0.002])
+
+    rd.extra["own_recordings"] = lambda: [("own.mcap", own_coupled)]      # made on first use, like the diagnosis's
+    (a, b), (sa, sb), names = term.own_reading(rd, 4, 3)
+    assert names == ["own.mcap"] and abs(a) > 3 * sa and abs(b) > 3 * sb
+    assert a == pytest.approx(0.08, rel=0.15) and b == pytest.approx(0.08, rel=0.15)
+    eff, _, ok, why = term.effect(rd, 4, 3, coef, std)
+    assert not ok and "own recording (own.mcap) reads +0.08" in why and eff["coefficient"] == pytest.approx(0.0805)
+
+    rd.extra.pop("own_coupling_readings")
+    rd.extra["own_recordings"] = [("own.mcap", own_clean)]
+    (a, b), _, _ = term.own_reading(rd, 4, 3)
+    assert abs(a) < 0.1 * 0.08 and abs(b) < 0.1 * 0.08
+    assert term.effect(rd, 4, 3, coef, std)[2] is True
+    rd.extra.pop("own_coupling_readings")
+    rd.extra["own_recordings"] = []                                   # none readable: nothing to compare with
+    assert term.own_reading(rd, 4, 3) is None and term.effect(rd, 4, 3, coef, std)[2] is True
+
+
+@pytest.mark.parametrize("own, kept", [
+    (((0.05, 0.04), (0.002, 0.002)), False),        # both paths, its sign, past a tenth: the model's own
+    (((0.006, 0.009), (0.001, 0.001)), True),       # a tenth of 0.08 is 0.008: their mean 0.0075 is under it
+    (((0.05, 0.04), (0.03, 0.002)), True),          # one path only significant: not a gear error read there
+    (((-0.05, -0.04), (0.002, 0.002)), True),       # the other sign
+    (((0.05, -0.04), (0.002, 0.002)), True),        # paths of opposite signs
+], ids=["same", "under_a_tenth", "one_path", "other_sign", "paths_disagree"])
+def test_the_own_recording_null_asks_for_both_paths_and_a_tenth(own, kept):
+    """Coupling.effect's rule on the own reading (kept in ``rd.extra["own_coupling_readings"]``): the TX40's hand
+    from the base reads +1.35 on its own recording with the torque path -0.21 +- 0.20, wrist 1 from the base +0.012
+    with the torque path 0.0007 +- 0.0008: one path's readings, which must not refuse a gear error concealed there."""
+    from types import SimpleNamespace
+
+    from diagnosis.library import Coupling
+
+    rd = SimpleNamespace(joints=[f"j{i}" for i in range(6)],
+                         extra={"own_recordings": [("own.mcap", None)],
+                                "own_coupling_readings": {("Coupling", 4, 3): (*own, ["own.mcap"])}})
+    _, _, ok, why = Coupling().effect(rd, 4, 3, np.array([0.08, 0.081]), np.array([0.002, 0.002]))
+    assert ok is kept and (kept or "the model's own error there" in why)
