@@ -199,3 +199,16 @@ def test_stop47_the_clean_real_conditions_name_what_they_named_at_stop_46():
     assert [(a["named"], a["unexplained"]) for a in new["rows"]] == [(b["named"], b["unexplained"]) for b in old["rows"]]
     assert new["payload_rows"] == old["payload_rows"] and new["summary"] == old["summary"]
     assert new["summary"]["all"] == {"conditions": 28, "named": 7}
+
+
+def test_stop48_the_clean_real_conditions_name_what_they_named_at_stop_47():
+    """Stop 48 (couplings between any two joints, refused where the model's own recording reads the pair too): the
+    28 clean real conditions and the 9 payload rows, diagnosed again, are stop 47's rows: no coupling named, the same
+    names (7 of 28), the same unexplained joints, the same payloads (9 of 9)."""
+    new = json.loads((ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-29-stop48.json").read_text())
+    old = json.loads((ROOT / "docs" / "bench" / "diagnose-real-clean-2026-11-29-stop47.json").read_text())
+    assert [r["name"] for r in new["rows"]] == [r["name"] for r in old["rows"]]
+    assert [(a["named"], a["unexplained"]) for a in new["rows"]] == [(b["named"], b["unexplained"]) for b in old["rows"]]
+    assert new["payload_rows"] == old["payload_rows"] and new["summary"] == old["summary"]
+    assert new["summary"]["all"] == {"conditions": 28, "named": 7}
+    assert not [f for r in new["rows"] for f in r["named"] if f["kind"] == "coupling"]

@@ -117,7 +117,8 @@ def test_a_pair_the_models_own_recording_reads_too_is_not_a_new_gear_error():
     assert names == ["own.mcap"] and abs(a) > 3 * sa and abs(b) > 3 * sb
     assert a == pytest.approx(0.08, rel=0.15) and b == pytest.approx(0.08, rel=0.15)
     eff, _, ok, why = term.effect(rd, 4, 3, coef, std)
-    assert not ok and "own recording (own.mcap) reads +0.08" in why and eff["coefficient"] == pytest.approx(0.0805)
+    assert not ok and "own recording (own.mcap) reads this pair too (torque path +0.079" in why
+    assert eff["coefficient"] == pytest.approx(0.0805)
 
     rd.extra.pop("own_coupling_readings")
     rd.extra["own_recordings"] = [("own.mcap", own_clean)]
@@ -131,15 +132,19 @@ def test_a_pair_the_models_own_recording_reads_too_is_not_a_new_gear_error():
 
 @pytest.mark.parametrize("own, kept", [
     (((0.05, 0.04), (0.002, 0.002)), False),        # both paths, its sign, past a tenth: the model's own
-    (((0.006, 0.009), (0.001, 0.001)), True),       # a tenth of 0.08 is 0.008: their mean 0.0075 is under it
-    (((0.05, 0.04), (0.03, 0.002)), True),          # one path only significant: not a gear error read there
+    (((0.006, 0.009), (0.001, 0.001)), True),       # a tenth of 0.08 is 0.008: the mean 0.0075, the torque path 0.006
+    (((0.05, 0.04), (0.03, 0.002)), True),          # the kinematic path alone: not a reading of the model's error
     (((-0.05, -0.04), (0.002, 0.002)), True),       # the other sign
-    (((0.05, -0.04), (0.002, 0.002)), True),        # paths of opposite signs
-], ids=["same", "under_a_tenth", "one_path", "other_sign", "paths_disagree"])
-def test_the_own_recording_null_asks_for_both_paths_and_a_tenth(own, kept):
-    """Coupling.effect's rule on the own reading (kept in ``rd.extra["own_coupling_readings"]``): the TX40's hand
-    from the base reads +1.35 on its own recording with the torque path -0.21 +- 0.20, wrist 1 from the base +0.012
-    with the torque path 0.0007 +- 0.0008: one path's readings, which must not refuse a gear error concealed there."""
+    (((0.05, -0.04), (0.002, 0.002)), False),       # the torque path alone, its sign, past a tenth
+    (((0.005, 0.0002), (0.001, 0.0002)), True),     # the torque path alone, under a tenth
+], ids=["same", "under_a_tenth", "kinematic_only", "other_sign", "torque_path", "torque_path_small"])
+def test_the_own_recording_null_reads_both_paths_or_the_torque_path(own, kept):
+    """Coupling.effect's rule on the own reading (kept in ``rd.extra["own_coupling_readings"]``): both paths or the
+    torque path alone, of the reading's sign, at least a tenth of it. The kinematic path alone does not refuse: the
+    TX40's hand from the base reads +1.35 on its own recording with the torque path -0.21 +- 0.20, wrist 1 from the
+    base +0.012 with the torque path 0.0007 +- 0.0008, where a gear error may be concealed. The torque path alone
+    does: the real KUKA's kuka_1 reads lwr_1 from lwr_4 at -0.0026 there (kinematic path -0.0002 +- 0.0002), named
+    on kuka_3 beside a payload at -0.0098."""
     from types import SimpleNamespace
 
     from diagnosis.library import Coupling
