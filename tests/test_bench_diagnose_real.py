@@ -379,3 +379,23 @@ def test_stop47_the_real_bench_names_what_stop_46_named_and_reports_the_links_al
     assert moved == [87, 105, 115]
     assert ("**112 of 204 right (112 with stop 46's code), 19 false names (19), clean 23 of 23; counting a payload "
             "named on a link reported alike with the true one, 115 and 16**") in " ".join(README.split())
+
+
+def test_stop48_the_real_bench_names_what_stop_47_named_but_case_72():
+    """The 180 real-bench cases with stop 48's code (`diagnose-bench-real-all-2026-11-29-stop48`): couplings are not
+    looked for on the KUKA's joint torque sensors, so case 72's false coupling (lwr_3 from lwr_4, beside a concealed
+    thermal drift on lwr_4) goes and the drift is named; every other case names what stop 47 named. 113 of 204
+    right, 18 false names, clean 23 of 23; counting the links alike 116 and 15. No coupling is named anywhere."""
+    rows = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-all-2026-11-29-stop48.json").read_text())["rows"]
+    before = json.loads((ROOT / "docs" / "bench" / "diagnose-bench-real-all-2026-11-29-stop47.json").read_text())["rows"]
+    s = bench_real.sim_bench.score(rows)
+    assert (s["effects_found"], s["effects"], sum(s["false_names"].values())) == (113, 204, 18)
+    assert (s["clean_none"], s["clean"]) == (23, 23)
+    assert (s["effects_found"] + s["alike_found"], sum(s["false_names"].values()) - s["alike_names"]) == (116, 15)
+    assert [r["seed"] for r in rows] == [r["seed"] for r in before]
+    differ = [r["seed"] for r, b in zip(rows, before) if _names_of(r) != _names_of(b)]
+    assert differ == [72]
+    assert ("coupling", 3) in _names_of(before[72]) and ("thermal_drift", 4) in _names_of(rows[72])
+    assert not [f for r in rows for f in r["named"] if f["kind"] == "coupling"]
+    assert ("**113 of 204 right (112 with stop 47's code), 18 false names (19), clean 23 of 23; counting a payload "
+            "named on a link reported alike with the true one, 116 and 15**") in " ".join(README.split())

@@ -154,3 +154,20 @@ def test_the_own_recording_null_reads_both_paths_or_the_torque_path(own, kept):
                                 "own_coupling_readings": {("Coupling", 4, 3): (*own, ["own.mcap"])}})
     _, _, ok, why = Coupling().effect(rd, 4, 3, np.array([0.08, 0.081]), np.array([0.002, 0.002]))
     assert ok is kept and (kept or "the model's own error there" in why)
+
+
+def test_no_coupling_is_looked_for_behind_the_gears():
+    """Coupling.looked_for (stop 48): where the torques are measured at the joint (torque sensors behind the gears,
+    ``torque_side: joint``) a gear matrix error leaves the measured torque as it is (it changes what the motors
+    carry), so neither the neighbours' grid nor a far pair is tried there; on the motor side both are."""
+    from types import SimpleNamespace
+
+    from diagnosis.library import LIBRARY, Coupling, CouplingFrom
+
+    far = [t for t in LIBRARY if isinstance(t, CouplingFrom)]
+    for side, tried in (("joint", False), ("motor", True)):
+        rd = SimpleNamespace(n=7, K=np.eye(7), torque_side=side)
+        pairs = [(j, i) for j in range(7) for t in (Coupling(), *far) for i in t.grid(rd, j)]
+        assert bool(pairs) is tried and Coupling.looked_for(rd) is tried
+        if tried:
+            assert sorted(pairs) == [(j, i) for j in range(7) for i in range(7) if i != j]
