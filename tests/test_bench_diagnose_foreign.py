@@ -544,3 +544,22 @@ def test_stop48_out_of_sample_cases_180_209_against_stop47s_code():
     assert names(next(r for r in now["twins"] if r["seed"] == 182)) == [("coupling", 0, 2)]
     assert ("**Out of sample, cases 180-209** (drawn at this stop, after the rules were set): **26 of 42 right (62 %), "
             "4 false names, clean 25 of 30; stop 47's code 25 of 42, 4, 26**") in README
+
+
+def test_stop48_the_kept_simulator_cases_name_what_stop_47_named():
+    """The 98 hil_sim bench cases whose recordings are kept, diagnosed with this release
+    (`diagnose-bench-sim-kept-2026-11-29-stop48.json`, beside stop 47's committed rows): the far couplings and their
+    own-recording null change no name there; 121 right and 13 false."""
+    d = json.loads((BENCH / "diagnose-bench-sim-kept-2026-11-29-stop48.json").read_text())
+    old = json.loads((BENCH / "diagnose-bench-sim-kept-2026-11-29-stop47.json").read_text())
+    assert d["stop47"] == old["stop47"]
+
+    def names(r):
+        return sorted((f["kind"], f["joint"]) + ((f["effect"].get("from_joint"),) if f["kind"] == "coupling" else ())
+                      for f in r["named"])
+
+    assert [r["seed"] for r in d["stop48"]] == [r["seed"] for r in d["stop47"]]
+    assert [names(r) for r in d["stop48"]] == [names(r) for r in d["stop47"]]
+    right = sum(len({(k, j) for k, j, *_ in names(r)} & {(e["kind"], e["joints"][0]) for e in r["effects"]})
+                for r in d["stop48"])
+    assert (len(d["stop48"]), right) == (98, 121)
