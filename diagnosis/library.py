@@ -2427,17 +2427,17 @@ class Coupling(Term):
     #: A reading is the model's own (``effect``) where the model's own recordings (``own_reading``) read the pair
     #: with both paths significant and of its sign, their mean at least this share of its size. The arm's gear matrix
     #: is a constant of the arm; a gear error that came since the identification leaves the model's own recordings
-    #: at their noise. The torque path alone is not enough: the simulated Js-2's own recording reads wrist 1 from
-    #: wrist 2's torque path at -0.0060 +- 0.0004 (kinematic path +0.0094), a tenth of the -0.06 the coupling tests
-    #: conceal there (tests/test_diag_coupling.py), which such a rule refused. On the independent simulator's clean identification recording (the TX40) the pairs of the
+    #: at their noise. On the independent simulator's clean identification recording (the TX40) the pairs of the
     #: concealed couplings it names read 0.0000-0.0002 (their c 0.05-0.1); on the real KUKA's kuka_1 (the model's
     #: own; K = I, no gear) the far pairs the real bench named on kuka_2 and kuka_3 read -0.27 (lwr_5 from lwr_3;
     #: named at -0.22), -0.11 (lwr_0 from lwr_5; named at -0.14 to -0.24) and -0.18 (lwr_0 from lwr_6; -0.22), and
     #: the TX40's base from wrist 1 +0.008 (named +0.037 on case 178), each with both paths significant. A tenth lies
-    #: between the groups (both read before the share was set: not out of sample). Both paths are asked for because
-    #: a share alone would take pairs whose own reading is one path's: the TX40's hand from the base reads +1.35
-    #: (torque path -0.21 +- 0.20; a coupling into the hand is below the noise) and wrist 1 from the base +0.012
-    #: (torque path 0.0007 +- 0.0008), where the independent simulator concealed +0.032 and +0.070
+    #: between the groups (both read before the share was set: not out of sample). Both paths are asked for: one
+    #: path's own reading would refuse true couplings. The TX40's hand from the base reads +1.35 there (torque path
+    #: -0.21 +- 0.20: a coupling into the hand is below the noise) and wrist 1 from the base +0.012 (torque path
+    #: 0.0007 +- 0.0008), where the independent simulator concealed +0.032 and +0.070; the simulated Js-2's wrist 1
+    #: from wrist 2 reads its torque path at -0.0060 +- 0.0004 (kinematic path +0.0094), a tenth of the -0.06 the
+    #: coupling tests conceal there (tests/test_diag_coupling.py), which a torque-path rule refused
     OWN_SHARE = 0.1
 
     def own_reading(self, rd, j: int, i: int) -> tuple[tuple, tuple, list] | None:
