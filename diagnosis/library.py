@@ -1486,22 +1486,38 @@ def _rnea_derivatives(rd: ResidualData) -> None:
     rd.extra.setdefault("dtau_dv", Dv)
 
 
+def _joint_slice(rd: ResidualData, key: str, j: int) -> np.ndarray:
+    """``rd.extra[key][:, :, j]`` ((N, n) of an (N, n, n) per-sample matrix) as a contiguous read-only array, made
+    once per recording and joint (``rd.extra[key + "_of_joint"]``, with the array it was made from: a new array
+    under ``key`` makes it again). The slice itself strides over the recording n^2 numbers at a time (M(q)'s
+    columns n N): the terms' products with it ran several times slower than on a contiguous copy (a coupling's
+    kinematic path 15 ms of its 24 ms per column set on the speed bench's session). The same numbers."""
+    src = rd.extra[key]
+    cache = rd.extra.setdefault(key + "_of_joint", {})
+    hit = cache.get(j)
+    if hit is None or hit[0] is not src:
+        col = np.ascontiguousarray(src[:, :, j])
+        col.setflags(write=False)
+        hit = cache[j] = (src, col)
+    return hit[1]
+
+
 def _rnea_dq(rd: ResidualData, j: int) -> np.ndarray:
-    """d tau_rigid / d q_j (joint side, (N, n)), from :func:`_rnea_derivatives`."""
+    """d tau_rigid / d q_j (joint side, (N, n), read-only), from :func:`_rnea_derivatives`."""
     if "dtau_dq" not in rd.extra:
         _rnea_derivatives(rd)
-    return rd.extra["dtau_dq"][:, :, j]
+    return _joint_slice(rd, "dtau_dq", j)
 
 
 def _rnea_dv(rd: ResidualData, j: int) -> np.ndarray:
-    """d tau_rigid / d q_dot_j (joint side, (N, n)), from :func:`_rnea_derivatives`."""
+    """d tau_rigid / d q_dot_j (joint side, (N, n), read-only), from :func:`_rnea_derivatives`."""
     if "dtau_dv" not in rd.extra:
         _rnea_derivatives(rd)
-    return rd.extra["dtau_dv"][:, :, j]
+    return _joint_slice(rd, "dtau_dv", j)
 
 
 def _mass_column(rd: ResidualData, j: int) -> np.ndarray:
-    """M(q) e_j (joint side, (N, n)); M(q) by pinocchio CRBA, computed once per recording."""
+    """M(q) e_j (joint side, (N, n), read-only); M(q) by pinocchio CRBA, computed once per recording."""
     M_all = rd.extra.get("M")
     if M_all is None:
         arm = rd.arm
@@ -1516,7 +1532,7 @@ def _mass_column(rd: ResidualData, j: int) -> np.ndarray:
         Mp = np.triu(Mp) + np.swapaxes(np.triu(Mp, 1), 1, 2)   # CRBA fills the upper triangle: mirror it
         M_all = Mp[:, iv][:, :, iv]                              # pinocchio order -> drive order
         rd.extra["M"] = M_all
-    return M_all[:, :, j]
+    return _joint_slice(rd, "M", j)
 
 
 def _typical_inertia(rd: ResidualData, j: int) -> float:
@@ -2509,13 +2525,18 @@ class Coupling(Term):
         col[:, :, 1] = kinematic @ K                        # motor side: K^T x, row-wise
         return col
 
+    @staticmethod
+    def paths_mean(coef, std) -> float:
+        """The two paths' coefficients (torque path, kinematic path) as one c: their inverse-variance mean. The
+        weights 1/std^2 take std floored where its square is still a float (a path whose column is zero on the fit
+        rows has std 0: 1e-300 squared underflowed to 0 and divided by it, independent-simulator case 25)."""
+        wa, wb = 1.0 / max(float(std[0]), 1e-150) ** 2, 1.0 / max(float(std[1]), 1e-150) ** 2
+        return float((float(coef[0]) * wa + float(coef[1]) * wb) / (wa + wb))
+
     def effect(self, rd, j, h, coef, std):
         i = int(h)
         a, b = float(coef[0]), float(coef[1])
-        # weights 1/std^2 with std floored where its square is still a float (a path whose column is zero on the
-        # fit rows has std 0: 1e-300 squared underflowed to 0 and divided by it, independent-simulator case 25)
-        wa, wb = 1.0 / max(std[0], 1e-150) ** 2, 1.0 / max(std[1], 1e-150) ** 2
-        c = float((a * wa + b * wb) / (wa + wb))
+        c = self.paths_mean(coef, std)
         both = abs(a) > 3 * std[0] and abs(b) > 3 * std[1]
         agree = both and abs(a - b) <= self.AGREE * abs(c)
         ok = agree and abs(c) < self.MAX_COEFFICIENT
@@ -2528,8 +2549,7 @@ class Coupling(Term):
         own = self.own_reading(rd, j, i) if ok else None
         if own is not None:
             (ao, bo), (sa, sb), names = own
-            co = float((ao / max(sa, 1e-150) ** 2 + bo / max(sb, 1e-150) ** 2)
-                       / (1.0 / max(sa, 1e-150) ** 2 + 1.0 / max(sb, 1e-150) ** 2))
+            co = self.paths_mean((ao, bo), (sa, sb))
             if (ao * c > 0 and bo * c > 0 and abs(ao) > 3 * sa and abs(bo) > 3 * sb
                     and abs(co) >= self.OWN_SHARE * abs(c)):
                 ok, why = False, (f"the model's own recording ({', '.join(names)}) reads this pair too (torque path "

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
+import orjson
 
 from .drives import DrivesConfig, parse_drives_yaml
 from .errors import ConfigError, LogError
@@ -451,8 +452,16 @@ def read_log(path: str | Path) -> Js2Log:
 
 
 def _decode_all(path: Path, raws: list[bytes], topic: str) -> list[dict]:
+    """Every message of a topic decoded at once. orjson first (about twice Python's json on a feedback channel: 1.0
+    of the speed bench's 4.6 s read); where it refuses (the NaN/Infinity literals Python's json writes, which
+    orjson does not read), Python's json, which reads them and names a message that is no JSON."""
+    blob = b"[" + b",".join(raws) + b"]"
     try:
-        return json.loads(b"[" + b",".join(raws) + b"]")
+        return orjson.loads(blob)
+    except orjson.JSONDecodeError:
+        pass
+    try:
+        return json.loads(blob)
     except ValueError:
         for i, raw in enumerate(raws):
             try:

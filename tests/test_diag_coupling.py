@@ -154,6 +154,18 @@ def test_the_own_recording_null_asks_for_both_paths_and_a_tenth(own, kept):
     assert ok is kept and (kept or "the model's own error there" in why)
 
 
+def test_the_two_paths_are_one_coefficient_by_their_inverse_variance_mean():
+    """Coupling.paths_mean, the one rule for the reading named and the model's own reading: the paths weighted by
+    1/std^2, a path with std 0 (its column zero on the fit rows, independent-simulator case 25) floored, not divided
+    by."""
+    from diagnosis.library import Coupling
+
+    assert Coupling.paths_mean((0.08, 0.06), (0.001, 0.001)) == pytest.approx(0.07, rel=1e-12)
+    assert Coupling.paths_mean((0.08, 0.05), (0.001, 0.002)) == pytest.approx((0.08 * 4 + 0.05) / 5, rel=1e-12)
+    assert Coupling.paths_mean((0.08, 0.05), (0.0, 0.002)) == pytest.approx(0.08, rel=1e-12)
+    assert np.isfinite(Coupling.paths_mean((0.08, 0.05), (0.0, 0.0)))
+
+
 def test_no_coupling_is_looked_for_behind_the_gears():
     """Coupling.looked_for (stop 48): where the torques are measured at the joint (torque sensors behind the gears,
     ``torque_side: joint``) a gear matrix error leaves the measured torque as it is (it changes what the motors
