@@ -642,3 +642,35 @@ def test_stop48_the_far_couplings_cost_is_the_committed_runs():
     a, b = got[""], got["-before"]
     assert (f"couplings {a[0][1]} / {a[1][1]} s against {b[0][1]} / {b[1][1]} s, total {a[0][0]} / {a[1][0]} CPU s "
             f"against {b[0][0]} / {b[1][0]}") in _readme_flat()
+
+
+def test_stop49_the_speed_rows_are_the_committed_runs():
+    """Stop 49's speed runs (two each, stop 48's code and this release in turn): the README's totals, ratios, read and
+    search seconds and peak memory are what scripts/bench_diagnose_speed.py --per-kind printed, each run of the code
+    it is said to be; reading is faster in both pairs (orjson), and the goal is missed in all four runs."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    got = {}
+    for tag, code in (("", "/work/main"), ("-before", "/work/wt48")):
+        got[tag] = []
+        for i in (1, 2):
+            out = (root / f"docs/bench/diagnose-speed-2026-11-29-stop49{tag}-{i}.txt").read_text()
+            assert f"code: {code}/diagnosis" in out
+            (total,) = _totals(out)
+            assert float(total[2]) > 1.0
+            read = re.search(r"^  read \+ join +([\d.]+)", out, flags=re.M).group(1)
+            peak = re.search(r"^peak memory ([\d.]+) GiB", out, flags=re.M).group(1)
+            got[tag].append((total, read, _search_s(out), peak))
+    for now, before in zip(got[""], got["-before"]):
+        assert float(now[1]) < float(before[1]) - 1.0          # the read, 1.2-1.4 s faster in each pair
+    a, b = got[""], got["-before"]
+    readme = _readme_flat()
+    assert (f"**Stop 49, this release: {a[0][0][0]} / {a[1][0][0]} CPU s, per 4 minutes {a[0][0][1]} / {a[1][0][1]} "
+            f"({float(a[0][0][2]):.2f} / {float(a[1][0][2]):.2f}x the 30 s goal); stop 48's code in the same session "
+            f"{b[0][0][0]} / {b[1][0][0]} CPU s, per 4 minutes {b[0][0][1]} / {b[1][0][1]} "
+            f"({float(b[0][0][2]):.2f} / {float(b[1][0][2]):.2f}x): not met**") in readme
+    assert f"reading the 8 files {b[0][1]} / {b[1][1]} -> {a[0][1]} / {a[1][1]} s" in readme
+    assert f"the search {b[0][2]} / {b[1][2]} -> {a[0][2]} / {a[1][2]} s" in readme
+    assert f"peak memory {b[0][3]} -> {a[0][3]} GiB" in readme and b[0][3] == b[1][3] and a[0][3] == a[1][3]
