@@ -563,3 +563,30 @@ def test_stop48_the_kept_simulator_cases_name_what_stop_47_named():
     right = sum(len({(k, j) for k, j, *_ in names(r)} & {(e["kind"], e["joints"][0]) for e in r["effects"]})
                 for r in d["stop48"])
     assert (len(d["stop48"]), right) == (98, 121)
+
+
+def test_stop49_second_out_of_sample_set_210_239():
+    """Cases 210-239, drawn and recorded at stop 49 after its code was final (its changes are speed and a refactor),
+    diagnosed with it: 18 of 33 right, 2 false names (payloads), clean 29 of 30 (the 6 clean cases and 23 of 24
+    twins); with a payload on a link reported alike, 19 right and 1 false. Stribeck 1 of 5, plays 0 of 5."""
+    d, s, t = _bench("diagnose-bench-foreign-210-2026-11-29-stop49.json")
+    assert [r["seed"] for r in d["rows"]] == list(range(210, 240))
+    assert (s["effects_found"], s["effects"], sum(s["false_names"].values()), s["false_names"]["payload_change"]) == (
+        18, 33, 2, 2)
+    assert (s["clean"], s["clean_none"], t["clean"], t["clean_none"]) == (6, 6, 24, 23)
+    assert (s["effects_found"] + s["alike_found"], sum(s["false_names"].values()) - s["alike_names"]) == (19, 1)
+
+    def right(kind):
+        return sum((kind, e["joints"][0]) in {(f["kind"], f["joint"]) for f in r["named"]}
+                   for r in d["rows"] for e in r["effects"] if e["kind"] == kind)
+
+    def concealed(kind):
+        return sum(e["kind"] == kind for r in d["rows"] for e in r["effects"])
+
+    assert (right("stribeck"), concealed("stribeck"), right("backlash"), concealed("backlash")) == (1, 5, 0, 5)
+    missed = sorted(v for r in d["rows"] for e, v in zip(r["effects"], r["visibility"]) if e["kind"] == "stribeck"
+                    and ("stribeck", e["joints"][0]) not in {(f["kind"], f["joint"]) for f in r["named"]})
+    assert len(missed) == 4 and (f"{missed[0]:.2f}", f"{missed[-1]:.2f}") == ("0.33", "0.97")
+    assert ("**18 of 33 right (55 %), 2 false names (payloads), clean 29 of 30**; counting a payload named on a link "
+            "reported alike with the true one, 19 and 1") in README
+    assert "Stribeck 1 of 5 (four humps with visibility 0.33-0.97 missed" in README and "plays 0 of 5" in README
