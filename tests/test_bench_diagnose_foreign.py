@@ -590,3 +590,4 @@ def test_stop49_second_out_of_sample_set_210_239():
     assert ("**18 of 33 right (55 %), 2 false names (payloads), clean 29 of 30**; counting a payload named on a link "
             "reported alike with the true one, 19 and 1") in README
     assert "Stribeck 1 of 5 (four humps with visibility 0.33-0.97 missed" in README and "plays 0 of 5" in README
+    assert "(210-239): 55 % (18 of 33), 2 false names, clean 29 of 30**" in README
