@@ -1471,7 +1471,7 @@ def _rnea_derivatives(rd: ResidualData) -> None:
     arm = rd.arm
     model, data = arm.model, arm.model.createData()
     q = np.nan_to_num(rd.q_joint)
-    dq, ddq = _gear_side(rd, rd.dq_motor), _gear_side(rd, rd.ddq_motor)
+    dq, ddq = _gear_signal(rd, "dq_motor"), _gear_signal(rd, "ddq_motor")
     iv = arm.idx_v
     Dq = np.zeros((len(q), rd.n, rd.n))
     Dv = np.zeros((len(q), rd.n, rd.n))
