@@ -1561,6 +1561,29 @@ def test_a_torque_offset_under_five_percent_of_the_motors_coulomb_friction_is_no
     assert ModelDataOffset().effect(rd, 0, None, np.array([0.0022]), std)[2]        # a reference keeps its reading
 
 
+def test_a_ripple_under_five_percent_of_the_motors_coulomb_friction_is_not_named():
+    """A cogging ripple is held to the floor a constant is held to (``Cogging.MIN_COULOMB_SHARE``, 5 % of the
+    motor's identified f_c): the independent simulator's clean twins 17 and 188 got once-per-revolution ripples of
+    0.7-0.9 % of their shoulders' f_c named. Above the floor, and on a motor whose model has no Coulomb friction,
+    the amplitude's significance and the two directions' agreement decide as before; every band's variant says why."""
+    from diagnosis.library import Cogging, CoggingPassBand, CoggingWide
+
+    rd = SimpleNamespace(extra={"model": SimpleNamespace(friction_coulomb=np.array([0.196, 0.0]))},
+                         joints=["j1", "j2"])
+    std = np.full(4, 1e-5)
+    small = np.array([0.0014, -0.0008, 0.0010, -0.0003])          # 0.0013 N*m, 0.7 % of f_c, both directions alike
+    _, _, ok, why = Cogging().effect(rd, 0, 1, small, std)
+    assert not ok and "0.7% of the motor's Coulomb friction (< 5%)" in why
+    assert Cogging().effect(rd, 1, 1, small, std)[2]                  # no Coulomb friction to compare: significant
+    big = small * 10                                                    # 6 % of f_c
+    assert Cogging().effect(rd, 0, 1, big, std)[2]
+    assert not CoggingWide().effect(rd, 0, 1, small, std)[2]
+    _, _, ok, why = CoggingPassBand().effect(rd, 0, (1, 7.0), small, std)
+    assert not ok and "(< 5%)" in why
+    # the other reasons keep their order: an insignificant ripple says so, not the floor
+    assert "not above its uncertainty" in Cogging().effect(rd, 0, 1, small, np.full(4, 1e-3))[3]
+
+
 def test_a_motor_that_moves_late_gets_its_own_report_cut():
     """``split_rows`` with ``moving``: the time split's parts per motor. A motor with less than
     ``MIN_SHARE_BEFORE_CUT`` of its moving samples before the recording's report cut is cut where 70 % of its own
