@@ -1350,12 +1350,7 @@ def _load(rd: ResidualData) -> np.ndarray:
 
 class LoadDependentFriction(Term):
     """Friction growing with the transmitted load: sgn(w_j) |(K^T tau_rigid)_j| (coefficient mu); the load includes
-    the torque of a payload found beside it once the search estimates the findings together (``_load``). Plus the
-    plain refit it contains (``[load column, w, sgn w]``, as :class:`ThermalDrift`'s), so that the refit null it
-    ``extends`` is nested in it: it must explain how the friction follows the load, not the friction's mean level
-    (stop 50). Read alone, the column was held to beat a two-column refit with one column: on the independent
-    simulator's wrists, where the load varies little about its mean, nine true load-dependent frictions (mu = 1)
-    were refused as "no better than friction_refit" (case 11: 27.7 % against 14.3 % of the select residual).
+    the torque of a payload found beside it once the search estimates the findings together (``_load``).
 
     Besides the refit null (``extends``), a null the data give: the same column with the load shifted in time
     (``shifted_columns``, circular shifts by fifths of the recording) keeps the column's statistics and its sign
@@ -1369,12 +1364,16 @@ class LoadDependentFriction(Term):
     uses_load = True
 
     def columns(self, rd, j, h):
-        return ThermalDrift._with_refit(rd, j, _sgn(_moving(rd, j)) * np.abs(np.nan_to_num(_load(rd)[:, j])))
+        col = np.zeros((len(rd.t), rd.n, 1))
+        col[:, j, 0] = _sgn(_moving(rd, j)) * np.abs(np.nan_to_num(_load(rd)[:, j]))
+        return col
 
     def shifted_columns(self, rd, j, h, lag: float) -> np.ndarray:
         """The column with the load circularly shifted by ``lag`` x the recording's length (the null)."""
+        col = np.zeros((len(rd.t), rd.n, 1))
         load = np.abs(np.nan_to_num(_load(rd)[:, j]))
-        return ThermalDrift._with_refit(rd, j, _sgn(_moving(rd, j)) * np.roll(load, int(round(lag * len(load)))))
+        col[:, j, 0] = _sgn(_moving(rd, j)) * np.roll(load, int(round(lag * len(load))))
+        return col
 
     #: mu = (1 - eta) / eta for a gear of efficiency eta under load: 2 is eta = 1/3 (a worm gear's; harmonic
     #: drives run at 0.6-0.85 under light load, mu 0.2-0.7). 0.5 until stop 45, which refused every one of the
