@@ -6,7 +6,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from js2spec.log import join_logs, read_log
 from js2spec.model import IdentifiedModel, load_model
@@ -205,18 +204,7 @@ def slow_log_note(fs: float) -> str:
 def diagnose(model: str | Path | IdentifiedModel, log_path: str | Path | list,
              options: DiagnoseOptions | None = None) -> DiagnosisResult:
     """Diagnose one recording, or one session recorded over several files (a list: joined in the order given,
-    each file filtered as its own run, :func:`js2spec.log.join_logs`).
-
-    The linear algebra runs on one BLAS thread (``threadpoolctl``), whatever the machine: a multi-threaded BLAS
-    sums in another order, and the search's ladder is a chain of comparisons, so a borderline candidate can land on
-    either side of a test. The independent simulator's case 213 named nothing with two OpenBLAS threads and a
-    joint elasticity with one (stop 50). One thread gives the same findings on any number of cores, the ones the
-    benchmarks measured (they run single-threaded, as the speed goal is set on one core)."""
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _diagnose(model, log_path, options)
-
-
-def _diagnose(model, log_path, options) -> DiagnosisResult:
+    each file filtered as its own run, :func:`js2spec.log.join_logs`)."""
     opt = options or DiagnoseOptions()
     mdl = model if isinstance(model, IdentifiedModel) else load_model(model)
     paths = [Path(p) for p in log_path] if isinstance(log_path, (list, tuple)) else [Path(log_path)]
