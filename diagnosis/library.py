@@ -611,10 +611,10 @@ class Cogging(Term):
     #: A ripple under this share of the motor's identified Coulomb friction is the friction's own precision, as a
     #: constant is (:attr:`TorqueOffset.MIN_COULOMB_SHARE`, the same 5 %; stop 50): friction varies that much along
     #: the angle on any gear. On clean recordings of the independent simulator (each effect case recorded again
-    #: without its effects) once-per-revolution ripples of 0.7 % and 0.9 % of the shoulders' f_c were named (twins
-    #: 17 and 188, report gains -0.88 and -1.0); the ripples that simulator conceals are 30-100 % of f_c (read
-    #: 18 % and more), hil_sim's 12-130 % (0.003-0.008 N*m on f_c of 0.006-0.024). A motor whose model has no
-    #: Coulomb friction is not held to it
+    #: without its effects) once-per-revolution ripples of 0.7 % and 0.9 % of the base's and the shoulder's f_c
+    #: were named (twins 17 and 188, report gains -0.88 and -1.0); the ripples that simulator conceals are 30-100 %
+    #: of f_c (read at 18 % and more), hil_sim's 12-130 % (0.003-0.008 N*m on f_c of 0.006-0.024). A motor whose
+    #: model has no Coulomb friction is not held to it
     MIN_COULOMB_SHARE = 0.05
     MIN_PERIODS = 5     # ripple periods the motor must sweep within the recording to tell ripple from pose
     MAX_PERIODS = 96    # and at most this many per revolution (or what the encoder resolves: 4 counts per period)

@@ -618,9 +618,9 @@ def test_stop50_the_committed_rows_give_the_figures(name, seeds, found, false, c
 def test_stop50_against_stops_48_and_49_over_0_239_and_the_readme():
     """Over cases 0-239: 169 of 294 right both, false names 25 -> 26, clean recordings 228 -> 230 of 240; counting a
     payload on a link reported alike, 175 right both, 19 -> 20 false. Three rows differ: the clean twins 17 and 188
-    lose their false once-per-revolution ripples (0.7 % and 0.9 % of the shoulders' f_c), and case 213 names a false
-    shoulder spring that is rounding: the same release names it in one of seven runs that differ only in where the
-    arrays lie in memory (docs/diagnosis.md, stop 50)."""
+    lose their false once-per-revolution ripples (0.7 % and 0.9 % of the base's and the shoulder's f_c), and case
+    213 names a false spring on the base axis that is rounding: the same release names it in one of seven runs that
+    differ only in where the arrays lie in memory (docs/diagnosis.md, stop 50)."""
     now = [_set50(n) for n in STOP50_SETS]
     before = [_set48(n) for n in STOP47_SETS + ("foreign-180",)] + [
         _bench("diagnose-bench-foreign-210-2026-11-29-stop49.json")]
@@ -688,3 +688,30 @@ def test_stop50_third_out_of_sample_set_240_269_against_stop49s_code():
     assert ("**23 of 34 right (68 %), 4 false names, clean 28 of 30; stop 49's code 23 of 34, 5 false names, clean 26 "
             "of 30**") in text
     assert "**On a third, drawn at stop 50 (240-269): 68 % (23 of 34), 4 false names, clean 28 of 30**" in text
+
+
+def test_stop50_the_false_ripples_the_floor_removes_are_under_one_percent_of_f_c():
+    """The README's stop-50 bullet: the floor (``Cogging.MIN_COULOMB_SHARE``, 5 %) removes once-per-revolution ripples
+    under 1 % of the base's or the shoulder's true f_c (foreign_sim's TrueArm) on twins 17 and 188 and on case 241
+    and twins 240 and 241; the Stribeck deficit it reads is case 237's, recorded at 200 Hz."""
+    from diagnosis.library import Cogging
+    from foreign_sim.arm import TrueArm
+
+    fc = TrueArm(0).fc
+    assert Cogging.MIN_COULOMB_SHARE == 0.05
+    before = {(k, r["seed"]): r for name in ("foreign", "foreign-180") for d, _, _ in [_set48(name)]
+              for k in ("rows", "twins") for r in d[k]}
+    old, _, _ = _bench("diagnose-bench-foreign-240-2026-11-29-stop50-before.json")
+    before.update({(k, r["seed"]): r for k in ("rows", "twins") for r in old[k]})
+    shares = [f["effect"]["amplitude"] / fc[f["joint"]]
+              for key in (("twins", 17), ("twins", 188), ("rows", 241), ("twins", 240), ("twins", 241))
+              for f in before[key]["named"] if f["kind"] == "cogging"]
+    assert len(shares) == 5 and max(shares) < 0.01
+    d, _, _ = _set50("foreign-210")
+    assert next(r for r in d["rows"] if r["seed"] == 237)["cycle_hz"] == 200.0
+    text = " ".join(README.split())
+    assert ("a cogging ripple under 5 % of its motor's Coulomb friction is not named, the floor a constant torque has "
+            "had since stop 43 (two clean twins named once-per-revolution ripples under 1 % of the base's or the "
+            "shoulder's f_c)") in text
+    assert "(case 241 and the twins of 240 and 241, under 1 % of its f_c)" in text
+    assert "overshoots, unresolved at 200 Hz)" in text
