@@ -715,3 +715,23 @@ def test_stop50_the_false_ripples_the_floor_removes_are_under_one_percent_of_f_c
             "shoulder's f_c)") in text
     assert "(case 241 and the twins of 240 and 241, under 1 % of its f_c)" in text
     assert "overshoots, unresolved at 200 Hz)" in text
+
+
+def test_stop50_the_kept_simulator_cases_name_what_stop_48_named():
+    """The 98 hil_sim bench cases whose recordings are kept, diagnosed with this release
+    (`diagnose-bench-sim-kept-2026-11-29-stop50.json`, beside stop 48's committed rows): the cogging floor changes no
+    name there (hil_sim's ripples are 12-130 % of its f_c); 121 right."""
+    d = json.loads((BENCH / "diagnose-bench-sim-kept-2026-11-29-stop50.json").read_text())
+    old = json.loads((BENCH / "diagnose-bench-sim-kept-2026-11-29-stop48.json").read_text())
+    assert d["stop48"] == old["stop48"]
+
+    def names(r):
+        return sorted((f["kind"], f["joint"]) + ((f["effect"].get("from_joint"),) if f["kind"] == "coupling" else ())
+                      for f in r["named"])
+
+    assert [r["seed"] for r in d["stop50"]] == [r["seed"] for r in d["stop48"]]
+    assert [names(r) for r in d["stop50"]] == [names(r) for r in d["stop48"]]
+    right = sum(len({(k, j) for k, j, *_ in names(r)} & {(e["kind"], e["joints"][0]) for e in r["effects"]})
+                for r in d["stop50"])
+    assert (len(d["stop50"]), right) == (98, 121)
+    assert "The 98 kept simulator-bench cases name what stop 48 named (121 right)." in " ".join(README.split())
