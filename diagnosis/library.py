@@ -615,7 +615,7 @@ class Cogging(Term):
     #: were named (twins 17 and 188, report gains -0.88 and -1.0); the ripples that simulator conceals are 30-100 %
     #: of f_c (read at 18 % and more), hil_sim's 12-130 % (0.003-0.008 N*m on f_c of 0.006-0.024). A motor whose
     #: model has no Coulomb friction is not held to it
-    MIN_COULOMB_SHARE = 0.05
+    MIN_COULOMB_SHARE = TorqueOffset.MIN_COULOMB_SHARE
     MIN_PERIODS = 5     # ripple periods the motor must sweep within the recording to tell ripple from pose
     MAX_PERIODS = 96    # and at most this many per revolution (or what the encoder resolves: 4 counts per period)
 
