@@ -453,8 +453,9 @@ def read_log(path: str | Path) -> Js2Log:
 
 def _decode_all(path: Path, raws: list[bytes], topic: str) -> list[dict]:
     """Every message of a topic decoded at once. orjson first (about twice Python's json on a feedback channel: the
-    speed bench's 8 files read in 3.1-3.7 s instead of 4.5-4.9); where it refuses (the NaN/Infinity literals Python's json writes, which
-    orjson does not read), Python's json, which reads them and names a message that is no JSON."""
+    speed bench's 8 files read in 3.1-3.7 s instead of 4.5-4.9); where it refuses (the NaN/Infinity literals
+    Python's json writes, which orjson does not read), Python's json, which reads them and names a message that is
+    no JSON."""
     blob = b"[" + b",".join(raws) + b"]"
     try:
         return orjson.loads(blob)

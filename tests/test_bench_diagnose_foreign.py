@@ -119,6 +119,43 @@ def _bench(file: str):
     return d, bench_diagnose.score(d["rows"]), bench_diagnose.score(d["twins"])
 
 
+def _names(r):
+    """A row's names: (kind, joint) of each effect named, sorted."""
+    return sorted((f["kind"], f["joint"]) for f in r["named"])
+
+
+def _pair_names(r):
+    """:func:`_names` with a coupling's other joint (``from_joint``): two couplings into one joint told apart."""
+    return sorted((f["kind"], f["joint"]) + ((f["effect"].get("from_joint"),) if f["kind"] == "coupling" else ())
+                  for f in r["named"])
+
+
+def _totals(sets):
+    """Over loaded sets (:func:`_bench`): right names, effects, false names, clean recordings naming nothing, clean
+    recordings (cases and twins)."""
+    return (sum(s["effects_found"] for _, s, _ in sets), sum(s["effects"] for _, s, _ in sets),
+            sum(sum(s["false_names"].values()) for _, s, _ in sets),
+            sum(s["clean_none"] + t["clean_none"] for _, s, t in sets),
+            sum(s["clean"] + t["clean"] for _, s, t in sets))
+
+
+def _totals_alike(sets):
+    """:func:`_totals` and, counting a payload named on a link reported alike with the true one, right and false."""
+    return _totals(sets) + (sum(s["effects_found"] + s["alike_found"] for _, s, _ in sets),
+                            sum(sum(s["false_names"].values()) - s["alike_names"] for _, s, _ in sets))
+
+
+def _right(rows, kind):
+    """Effects of ``kind`` named on their joint, over a set's rows."""
+    return sum((kind, e["joints"][0]) in {(f["kind"], f["joint"]) for f in r["named"]}
+               for r in rows for e in r["effects"] if e["kind"] == kind)
+
+
+def _concealed(rows, kind):
+    """Effects of ``kind`` concealed, over a set's rows."""
+    return sum(e["kind"] == kind for r in rows for e in r["effects"])
+
+
 @pytest.mark.parametrize("name,seeds,found,false,clean,twins", [
     ("foreign", range(0, 40), (37, 62), 5, (2, 2), (36, 38)),
     ("foreign-fresh", range(40, 80), (17, 48), 14, (5, 6), (31, 34)),
@@ -262,15 +299,10 @@ def test_stop46_against_stop45_over_0_179_and_the_readme():
     before = [_set45(n) for n in ("foreign", "foreign-fresh", "foreign-new", "foreign-out")]
     before.append(_set46("foreign-140-2026-11-29-stop46-stop45code"))
 
-    def total(sets):
-        return (sum(s["effects_found"] for _, s, _ in sets), sum(s["effects"] for _, s, _ in sets),
-                sum(sum(s["false_names"].values()) for _, s, _ in sets),
-                sum(s["clean_none"] + t["clean_none"] for _, s, t in sets), sum(s["clean"] + t["clean"] for _, s, t in sets))
-
     def false(sets, kind):
         return sum(s["false_names"][kind] for _, s, _ in sets)
 
-    assert total(before) == (123, 219, 39, 164, 180) and total(now) == (120, 219, 19, 174, 180)
+    assert _totals(before) == (123, 219, 39, 164, 180) and _totals(now) == (120, 219, 19, 174, 180)
     assert [false(x, "cogging") for x in (before, now)] == [8, 1]
     assert [false(x, "backlash") for x in (before, now)] == [6, 2]
     assert [false(x, "payload_change") for x in (before, now)] == [14, 8]
@@ -308,19 +340,16 @@ def test_stop46_the_kept_simulator_cases_against_stop45():
     the true plays of 65 and 390 are lost."""
     d = json.loads((BENCH / "diagnose-bench-sim-kept-2026-11-29-stop46.json").read_text())
 
-    def names(r):
-        return sorted((f["kind"], f["joint"]) for f in r["named"])
-
     tot = {}
     for tag in ("stop45", "stop46"):
         right = false = 0
         for r in d[tag]:
             truth = {(e["kind"], e["joints"][0]) for e in r["effects"]}
-            right += len(set(names(r)) & truth)
-            false += len(set(names(r)) - truth)
+            right += len(set(_names(r)) & truth)
+            false += len(set(_names(r)) - truth)
         tot[tag] = (len(d[tag]), right, false)
     assert tot == {"stop45": (98, 123, 16), "stop46": (98, 121, 13)}
-    differ = [a["seed"] for a, b in zip(d["stop45"], d["stop46"]) if names(a) != names(b)]
+    differ = [a["seed"] for a, b in zip(d["stop45"], d["stop46"]) if _names(a) != _names(b)]
     assert differ == [20, 64, 65, 85, 147, 390]
     assert all(f["effect"]["mass"] > 0 for r in d["stop46"] for f in r["named"] if f["kind"] == "payload_change")
 
@@ -354,24 +383,15 @@ def test_stop47_far_couplings_against_stop46_over_0_179():
     now = [_set47(n, "-farcoupling") for n in STOP47_SETS]
     before = [_set46(f"{n}-2026-11-29-stop46") for n in STOP47_SETS]
 
-    def total(sets):
-        return (sum(s["effects_found"] for _, s, _ in sets), sum(s["effects"] for _, s, _ in sets),
-                sum(sum(s["false_names"].values()) for _, s, _ in sets),
-                sum(s["clean_none"] + t["clean_none"] for _, s, t in sets), sum(s["clean"] + t["clean"] for _, s, t in sets))
-
-    assert total(before) == (120, 219, 19, 174, 180) and total(now) == (125, 219, 20, 173, 180)
+    assert _totals(before) == (120, 219, 19, 174, 180) and _totals(now) == (125, 219, 20, 173, 180)
     alike = (sum(s["effects_found"] + s["alike_found"] for _, s, _ in now),
              sum(sum(s["false_names"].values()) - s["alike_names"] for _, s, _ in now))
     assert alike == (129, 16)
     assert [sum(s["alike_found"] for _, s, _ in before)] == [0]        # stop 46 reported no links alike
 
-    def names(r):
-        return sorted((f["kind"], f["joint"]) + ((f["effect"]["from_joint"],) if f["kind"] == "coupling" else ())
-                      for f in r["named"])
-
     rows_now = {(k, r["seed"]): r for d, _, _ in now for k in ("rows", "twins") for r in d[k]}
     rows_before = {(k, r["seed"]): r for d, _, _ in before for k in ("rows", "twins") for r in d[k]}
-    differ = sorted(key for key in rows_now if names(rows_now[key]) != names(rows_before[key]))
+    differ = sorted(key for key in rows_now if _pair_names(rows_now[key]) != _pair_names(rows_before[key]))
     assert differ == [("rows", 10), ("rows", 18), ("rows", 24), ("rows", 49), ("rows", 58), ("rows", 120),
                       ("rows", 178), ("twins", 178)]
     for seed, joint, source in ((18, 1, 5), (49, 0, 5), (58, 1, 3)):
@@ -381,7 +401,7 @@ def test_stop47_far_couplings_against_stop46_over_0_179():
                                                                                   truth["from_joint"])
         assert abs(got["effect"]["coefficient"] - truth["coefficient"]) < 0.005
     for key in (("rows", 178), ("twins", 178)):
-        assert ("coupling", 0, 3) in names(rows_now[key])
+        assert ("coupling", 0, 3) in _pair_names(rows_now[key])
     for seed in (10, 24):
         assert any(f["kind"] == "cogging" for f in rows_now["rows", seed]["named"])
     # the alike links hold the true link where they count (the wrist centre's payloads)
@@ -414,24 +434,16 @@ def test_stop47_against_stop46_over_0_179_and_the_readme():
     now = [_set47(n) for n in STOP47_SETS]
     before = [_set46(f"{n}-2026-11-29-stop46") for n in STOP47_SETS]
 
-    def total(sets):
-        return (sum(s["effects_found"] for _, s, _ in sets), sum(s["effects"] for _, s, _ in sets),
-                sum(sum(s["false_names"].values()) for _, s, _ in sets),
-                sum(s["clean_none"] + t["clean_none"] for _, s, t in sets), sum(s["clean"] + t["clean"] for _, s, t in sets))
-
-    assert total(before) == (120, 219, 19, 174, 180) and total(now) == (122, 219, 20, 174, 180)
+    assert _totals(before) == (120, 219, 19, 174, 180) and _totals(now) == (122, 219, 20, 174, 180)
     assert (sum(s["effects_found"] + s["alike_found"] for _, s, _ in now),
             sum(sum(s["false_names"].values()) - s["alike_names"] for _, s, _ in now)) == (126, 16)
 
-    def names(r):
-        return sorted((f["kind"], f["joint"]) for f in r["named"])
-
     rows_now = {(k, r["seed"]): r for d, _, _ in now for k in ("rows", "twins") for r in d[k]}
     rows_before = {(k, r["seed"]): r for d, _, _ in before for k in ("rows", "twins") for r in d[k]}
-    assert sorted(key for key in rows_now if names(rows_now[key]) != names(rows_before[key])) == [
+    assert sorted(key for key in rows_now if _names(rows_now[key]) != _names(rows_before[key])) == [
         ("rows", 10), ("rows", 24), ("rows", 120)]
-    assert ("cogging", 2) in names(rows_now["rows", 10]) and ("cogging", 4) in names(rows_now["rows", 24])
-    assert ("thermal_drift", 3) in names(rows_now["rows", 120])
+    assert ("cogging", 2) in _names(rows_now["rows", 10]) and ("cogging", 4) in _names(rows_now["rows", 24])
+    assert ("thermal_drift", 3) in _names(rows_now["rows", 120])
     alike = {}
     for key, row in rows_now.items():
         for f in row["named"]:
@@ -452,13 +464,10 @@ def test_stop47_the_kept_simulator_cases_name_what_stop_46_named():
     old = json.loads((BENCH / "diagnose-bench-sim-kept-2026-11-29-stop46.json").read_text())
     assert d["stop46"] == old["stop46"]
 
-    def names(r):
-        return sorted((f["kind"], f["joint"]) for f in r["named"])
-
     assert [r["seed"] for r in d["stop47"]] == [r["seed"] for r in d["stop46"]]
-    assert [names(r) for r in d["stop47"]] == [names(r) for r in d["stop46"]]
-    right = sum(len(set(names(r)) & {(e["kind"], e["joints"][0]) for e in r["effects"]}) for r in d["stop47"])
-    false = sum(len(set(names(r)) - {(e["kind"], e["joints"][0]) for e in r["effects"]}) for r in d["stop47"])
+    assert [_names(r) for r in d["stop47"]] == [_names(r) for r in d["stop46"]]
+    right = sum(len(set(_names(r)) & {(e["kind"], e["joints"][0]) for e in r["effects"]}) for r in d["stop47"])
+    false = sum(len(set(_names(r)) - {(e["kind"], e["joints"][0]) for e in r["effects"]}) for r in d["stop47"])
     assert (len(d["stop47"]), right, false) == (98, 121, 13)
     assert not [f for r in d["stop47"] for f in r["named"] if f.get("links_alike")]
 
@@ -489,29 +498,21 @@ def test_stop48_against_stop47_over_0_179_and_the_readme():
     now = [_set48(n) for n in STOP47_SETS]
     before = [_set47(n) for n in STOP47_SETS]
 
-    def total(sets):
-        return (sum(s["effects_found"] for _, s, _ in sets), sum(s["effects"] for _, s, _ in sets),
-                sum(sum(s["false_names"].values()) for _, s, _ in sets),
-                sum(s["clean_none"] + t["clean_none"] for _, s, t in sets), sum(s["clean"] + t["clean"] for _, s, t in sets))
-
-    assert total(before) == (122, 219, 20, 174, 180) and total(now) == (125, 219, 19, 174, 180)
+    assert _totals(before) == (122, 219, 20, 174, 180) and _totals(now) == (125, 219, 19, 174, 180)
     assert (sum(s["effects_found"] + s["alike_found"] for _, s, _ in now),
             sum(sum(s["false_names"].values()) - s["alike_names"] for _, s, _ in now)) == (129, 15)
 
-    def names(r):
-        return sorted((f["kind"], f["joint"]) + ((f["effect"]["from_joint"],) if f["kind"] == "coupling" else ())
-                      for f in r["named"])
-
     rows_now = {(k, r["seed"]): r for d, _, _ in now for k in ("rows", "twins") for r in d[k]}
     rows_before = {(k, r["seed"]): r for d, _, _ in before for k in ("rows", "twins") for r in d[k]}
-    assert sorted(key for key in rows_now if names(rows_now[key]) != names(rows_before[key])) == [
+    assert sorted(key for key in rows_now if _pair_names(rows_now[key]) != _pair_names(rows_before[key])) == [
         ("rows", 18), ("rows", 49), ("rows", 58)]
     for seed in (18, 49, 58):
         truth = next(e for e in rows_now["rows", seed]["effects"] if e["kind"] == "coupling")
         got = next(f for f in rows_now["rows", seed]["named"] if f["kind"] == "coupling")
         assert (got["joint"], got["effect"]["from_joint"]) == (truth["joints"][0], truth["from_joint"])
         assert abs(got["effect"]["coefficient"] - truth["coefficient"]) < 0.005
-    assert names(rows_now["rows", 178]) == names(rows_before["rows", 178]) and not rows_now["twins", 178]["named"]
+    assert _pair_names(rows_now["rows", 178]) == _pair_names(rows_before["rows", 178])
+    assert not rows_now["twins", 178]["named"]
     assert ("**Over cases 0-179: 125 of 219 right (57 %; stop 47's code 122), 19 false names (20), clean 174 of "
             "180 (174)**") in README
 
@@ -530,18 +531,15 @@ def test_stop48_out_of_sample_cases_180_209_against_stop47s_code():
                 sc["clean_none"] + tw["clean_none"]) == fig
         assert sc["clean"] + tw["clean"] == 30
 
-    def names(r):
-        return sorted((f["kind"], f["joint"]) + ((f["effect"]["from_joint"],) if f["kind"] == "coupling" else ())
-                      for f in r["named"])
-
-    differ = [(k, a["seed"]) for k in ("rows", "twins") for a, b in zip(now[k], old[k]) if names(a) != names(b)]
+    differ = [(k, a["seed"]) for k in ("rows", "twins") for a, b in zip(now[k], old[k])
+              if _pair_names(a) != _pair_names(b)]
     assert differ == [("rows", 201), ("twins", 182)]
     row = next(r for r in now["rows"] if r["seed"] == 201)
     truth = next(e for e in row["effects"] if e["kind"] == "coupling")
     got = next(f for f in row["named"] if f["kind"] == "coupling")
     assert (got["joint"], got["effect"]["from_joint"]) == (truth["joints"][0], truth["from_joint"]) == (0, 5)
     assert abs(got["effect"]["coefficient"] - truth["coefficient"]) < 0.005
-    assert names(next(r for r in now["twins"] if r["seed"] == 182)) == [("coupling", 0, 2)]
+    assert _pair_names(next(r for r in now["twins"] if r["seed"] == 182)) == [("coupling", 0, 2)]
     assert ("**Out of sample, cases 180-209** (drawn at this stop, after the rules were set): **26 of 42 right (62 %), "
             "4 false names, clean 25 of 30; stop 47's code 25 of 42, 4, 26**") in README
 
@@ -554,13 +552,9 @@ def test_stop48_the_kept_simulator_cases_name_what_stop_47_named():
     old = json.loads((BENCH / "diagnose-bench-sim-kept-2026-11-29-stop47.json").read_text())
     assert d["stop47"] == old["stop47"]
 
-    def names(r):
-        return sorted((f["kind"], f["joint"]) + ((f["effect"].get("from_joint"),) if f["kind"] == "coupling" else ())
-                      for f in r["named"])
-
     assert [r["seed"] for r in d["stop48"]] == [r["seed"] for r in d["stop47"]]
-    assert [names(r) for r in d["stop48"]] == [names(r) for r in d["stop47"]]
-    right = sum(len({(k, j) for k, j, *_ in names(r)} & {(e["kind"], e["joints"][0]) for e in r["effects"]})
+    assert [_pair_names(r) for r in d["stop48"]] == [_pair_names(r) for r in d["stop47"]]
+    right = sum(len({(k, j) for k, j, *_ in _pair_names(r)} & {(e["kind"], e["joints"][0]) for e in r["effects"]})
                 for r in d["stop48"])
     assert (len(d["stop48"]), right) == (98, 121)
 
@@ -576,14 +570,7 @@ def test_stop49_second_out_of_sample_set_210_239():
     assert (s["clean"], s["clean_none"], t["clean"], t["clean_none"]) == (6, 6, 24, 23)
     assert (s["effects_found"] + s["alike_found"], sum(s["false_names"].values()) - s["alike_names"]) == (19, 1)
 
-    def right(kind):
-        return sum((kind, e["joints"][0]) in {(f["kind"], f["joint"]) for f in r["named"]}
-                   for r in d["rows"] for e in r["effects"] if e["kind"] == kind)
-
-    def concealed(kind):
-        return sum(e["kind"] == kind for r in d["rows"] for e in r["effects"])
-
-    assert (right("stribeck"), concealed("stribeck"), right("backlash"), concealed("backlash")) == (1, 5, 0, 5)
+    assert [(_right(d["rows"], k), _concealed(d["rows"], k)) for k in ("stribeck", "backlash")] == [(1, 5), (0, 5)]
     missed = sorted(v for r in d["rows"] for e, v in zip(r["effects"], r["visibility"] or []) if e["kind"] == "stribeck"
                     and ("stribeck", e["joints"][0]) not in {(f["kind"], f["joint"]) for f in r["named"]})
     assert len(missed) == 4 and (f"{missed[0]:.2f}", f"{missed[-1]:.2f}") == ("0.33", "0.97")
@@ -625,29 +612,18 @@ def test_stop50_against_stops_48_and_49_over_0_239_and_the_readme():
     before = [_set48(n) for n in STOP47_SETS + ("foreign-180",)] + [
         _bench("diagnose-bench-foreign-210-2026-11-29-stop49.json")]
 
-    def total(sets):
-        return (sum(s["effects_found"] for _, s, _ in sets), sum(s["effects"] for _, s, _ in sets),
-                sum(sum(s["false_names"].values()) for _, s, _ in sets),
-                sum(s["clean_none"] + t["clean_none"] for _, s, t in sets), sum(s["clean"] + t["clean"] for _, s, t in sets),
-                sum(s["effects_found"] + s["alike_found"] for _, s, _ in sets),
-                sum(sum(s["false_names"].values()) - s["alike_names"] for _, s, _ in sets))
-
-    assert total(before) == (169, 294, 25, 228, 240, 175, 19)
-    assert total(now) == (169, 294, 26, 230, 240, 175, 20)
-
-    def names(r):
-        return sorted((f["kind"], f["joint"]) + ((f["effect"]["from_joint"],) if f["kind"] == "coupling" else ())
-                      for f in r["named"])
+    assert _totals_alike(before) == (169, 294, 25, 228, 240, 175, 19)
+    assert _totals_alike(now) == (169, 294, 26, 230, 240, 175, 20)
 
     rows_now = {(k, r["seed"]): r for d, _, _ in now for k in ("rows", "twins") for r in d[k]}
     rows_before = {(k, r["seed"]): r for d, _, _ in before for k in ("rows", "twins") for r in d[k]}
     assert rows_now.keys() == rows_before.keys()
-    assert sorted(key for key in rows_now if names(rows_now[key]) != names(rows_before[key])) == [
+    assert sorted(key for key in rows_now if _pair_names(rows_now[key]) != _pair_names(rows_before[key])) == [
         ("rows", 213), ("twins", 17), ("twins", 188)]
-    assert [names(rows_before["twins", s]) for s in (17, 188)] == [[("cogging", 0)], [("cogging", 1)]]
+    assert [_pair_names(rows_before["twins", s]) for s in (17, 188)] == [[("cogging", 0)], [("cogging", 1)]]
     assert [f["effect"]["periods_per_rev"] for s in (17, 188) for f in rows_before["twins", s]["named"]] == [1, 1]
     assert not rows_now["twins", 17]["named"] and not rows_now["twins", 188]["named"]
-    assert names(rows_now["rows", 213]) == [("joint_elasticity", 0)] and not rows_before["rows", 213]["named"]
+    assert _pair_names(rows_now["rows", 213]) == [("joint_elasticity", 0)] and not rows_before["rows", 213]["named"]
     assert ("**Over cases 0-239: 169 of 294 right (57 %; stop 48's and 49's rows 169), 26 false names (25), clean 230 "
             "of 240 (228)**") in " ".join(README.split())
 
@@ -665,10 +641,7 @@ def test_stop50_third_out_of_sample_set_240_269_against_stop49s_code():
                 sc["clean_none"] + tw["clean_none"]) == fig
         assert sc["clean"] + tw["clean"] == 30
 
-    def names(r):
-        return sorted((f["kind"], f["joint"]) for f in r["named"])
-
-    differ = [(k, a["seed"]) for k in ("rows", "twins") for a, b in zip(now[k], old[k]) if names(a) != names(b)]
+    differ = [(k, a["seed"]) for k in ("rows", "twins") for a, b in zip(now[k], old[k]) if _names(a) != _names(b)]
     assert differ == [("rows", 241), ("twins", 240), ("twins", 241)]
     for k, seed in differ:
         before = next(r for r in old[k] if r["seed"] == seed)["named"]
@@ -676,14 +649,7 @@ def test_stop50_third_out_of_sample_set_240_269_against_stop49s_code():
         assert 0.0012 < before[0]["effect"]["amplitude"] < 0.002
         assert not next(r for r in now[k] if r["seed"] == seed)["named"]
 
-    def right(kind):
-        return sum((kind, e["joints"][0]) in {(f["kind"], f["joint"]) for f in r["named"]}
-                   for r in now["rows"] for e in r["effects"] if e["kind"] == kind)
-
-    def concealed(kind):
-        return sum(e["kind"] == kind for r in now["rows"] for e in r["effects"])
-
-    assert (right("coupling"), concealed("coupling"), right("thermal_drift"), concealed("thermal_drift")) == (1, 4, 4, 6)
+    assert [(_right(now["rows"], k), _concealed(now["rows"], k)) for k in ("coupling", "thermal_drift")] == [(1, 4), (4, 6)]
     text = " ".join(README.split())
     assert ("**23 of 34 right (68 %), 4 false names, clean 28 of 30; stop 49's code 23 of 34, 5 false names, clean 26 "
             "of 30**") in text
@@ -725,13 +691,9 @@ def test_stop50_the_kept_simulator_cases_name_what_stop_48_named():
     old = json.loads((BENCH / "diagnose-bench-sim-kept-2026-11-29-stop48.json").read_text())
     assert d["stop48"] == old["stop48"]
 
-    def names(r):
-        return sorted((f["kind"], f["joint"]) + ((f["effect"].get("from_joint"),) if f["kind"] == "coupling" else ())
-                      for f in r["named"])
-
     assert [r["seed"] for r in d["stop50"]] == [r["seed"] for r in d["stop48"]]
-    assert [names(r) for r in d["stop50"]] == [names(r) for r in d["stop48"]]
-    right = sum(len({(k, j) for k, j, *_ in names(r)} & {(e["kind"], e["joints"][0]) for e in r["effects"]})
+    assert [_pair_names(r) for r in d["stop50"]] == [_pair_names(r) for r in d["stop48"]]
+    right = sum(len({(k, j) for k, j, *_ in _pair_names(r)} & {(e["kind"], e["joints"][0]) for e in r["effects"]})
                 for r in d["stop50"])
     assert (len(d["stop50"]), right) == (98, 121)
     assert "The 98 kept simulator-bench cases name what stop 48 named (121 right)." in " ".join(README.split())

@@ -619,24 +619,31 @@ def test_a_reading_whose_torque_leaves_the_floats_is_no_candidate(rd):
     assert "blowup" not in ranked and "torque_offset" in ranked
 
 
+def _missed_runs_in_turn(stop: str, before_code: str):
+    """(tag, text, totals) of a stop's committed speed runs, two each in turn: tag '' this release (code from
+    /work/main), '-before' the previous stop's (from ``before_code``); each file says which code it ran, and each
+    missed the 30 s goal (ratio above 1)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    for tag, code in (("", "/work/main"), ("-before", before_code)):
+        for i in (1, 2):
+            out = (root / f"docs/bench/diagnose-speed-2026-11-29-{stop}{tag}-{i}.txt").read_text()
+            assert f"code: {code}/diagnosis" in out
+            (total,) = _totals(out)
+            assert float(total[2]) > 1.0
+            yield tag, out, total
+
 def test_stop48_the_far_couplings_cost_is_the_committed_runs():
     """Stop 48's speed runs (two each, stop 47's code and this release in turn, a busy machine): the README's coupling
     and total CPU seconds are what scripts/bench_diagnose_speed.py --per-kind printed, each run of the code it is said
     to be; the couplings take 4-6 CPU s more with the far pairs, and the goal is missed in all four runs."""
     import re
-    from pathlib import Path
 
-    root = Path(__file__).resolve().parent.parent
     got = {}
-    for tag, code in (("", "/work/main"), ("-before", "/work/wt47")):
-        got[tag] = []
-        for i in (1, 2):
-            out = (root / f"docs/bench/diagnose-speed-2026-11-29-stop48{tag}-{i}.txt").read_text()
-            assert f"code: {code}/diagnosis" in out
-            (total,) = _totals(out)
-            assert float(total[2]) > 1.0
-            coupling = re.search(r"^  coupling +(?:[\d.]+ +){4}([\d.]+)$", out, flags=re.M).group(1)
-            got[tag].append((total[0], coupling))
+    for tag, out, total in _missed_runs_in_turn("stop48", "/work/wt47"):
+        coupling = re.search(r"^  coupling +(?:[\d.]+ +){4}([\d.]+)$", out, flags=re.M).group(1)
+        got.setdefault(tag, []).append((total[0], coupling))
     for (_, now), (_, before) in zip(got[""], got["-before"]):
         assert 4.0 < float(now) - float(before) < 6.5
     a, b = got[""], got["-before"]
@@ -649,20 +656,12 @@ def test_stop49_the_speed_rows_are_the_committed_runs():
     search seconds and peak memory are what scripts/bench_diagnose_speed.py --per-kind printed, each run of the code
     it is said to be; reading is faster in both pairs (orjson), and the goal is missed in all four runs."""
     import re
-    from pathlib import Path
 
-    root = Path(__file__).resolve().parent.parent
     got = {}
-    for tag, code in (("", "/work/main"), ("-before", "/work/wt48")):
-        got[tag] = []
-        for i in (1, 2):
-            out = (root / f"docs/bench/diagnose-speed-2026-11-29-stop49{tag}-{i}.txt").read_text()
-            assert f"code: {code}/diagnosis" in out
-            (total,) = _totals(out)
-            assert float(total[2]) > 1.0
-            read = re.search(r"^  read \+ join +([\d.]+)", out, flags=re.M).group(1)
-            peak = re.search(r"^peak memory ([\d.]+) GiB", out, flags=re.M).group(1)
-            got[tag].append((total, read, _search_s(out), peak))
+    for tag, out, total in _missed_runs_in_turn("stop49", "/work/wt48"):
+        read = re.search(r"^  read \+ join +([\d.]+)", out, flags=re.M).group(1)
+        peak = re.search(r"^peak memory ([\d.]+) GiB", out, flags=re.M).group(1)
+        got.setdefault(tag, []).append((total, read, _search_s(out), peak))
     for now, before in zip(got[""], got["-before"]):
         assert float(now[1]) < float(before[1]) - 1.0          # the read, 1.2-1.4 s faster in each pair
     a, b = got[""], got["-before"]
